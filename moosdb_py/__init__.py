@@ -1,0 +1,1 @@
+"""MOOS itself in pure Python: wire codec, MOOSDB, client, MOOSApp, mission files and the MOOS essentials."""

@@ -1,0 +1,1 @@
+"""LTC spill-boundary forecaster: data, features, models, training, evaluation and the TCP push."""
