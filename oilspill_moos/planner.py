@@ -1,0 +1,268 @@
+"""Perimeter planning for oil-spill containment: pure geometry, no MOOS.
+
+A predicted spill polygon becomes a stand-off region around it; the fleet is
+spread evenly along that region's perimeter, each vehicle taking the whole
+loop from its own point in the same direction, so the spacing stays even for
+as long as everyone keeps the same speed.  Where on the perimeter the first
+point goes (the rotation) and who goes where (the assignment) are chosen to
+minimise the *longest* transit, because containment starts only once the last
+vehicle is on the loop.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.optimize import linear_sum_assignment, minimize_scalar
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+
+Point = tuple[float, float]
+
+
+class PlanError(ValueError):
+    """A boundary or fleet the planner cannot work with; str() is the reason sent back to the forecaster."""
+
+
+def containment_region(boundary, standoff: float, simplify: float = 0.5) -> Polygon:
+    """The polygon the fleet circles: the spill grown outward by `standoff` metres.
+
+    Holes are dropped (the fleet contains the outside edge); self-intersecting
+    input is repaired with `make_valid`; separate patches that stay apart after
+    buffering are wrapped in their convex hull, since one loop must enclose all
+    of them.  The result is counter-clockwise, so every loop runs the same way.
+    """
+    if not np.isfinite(standoff) or standoff < 0:
+        raise PlanError(f"stand-off distance {standoff!r} must be a finite number >= 0")
+    parts = _polygon_parts(boundary)
+    grown = shapely.union_all([shapely.buffer(Polygon(p.exterior), standoff, quad_segs=4) for p in parts])
+    if isinstance(grown, MultiPolygon):
+        grown = grown.convex_hull
+    region = Polygon(grown.exterior)
+    if simplify > 0:
+        region = region.simplify(simplify, preserve_topology=True)
+    if region.is_empty or region.area <= 0:
+        raise PlanError("boundary encloses no area")
+    return orient(region, sign=1.0)
+
+
+def _polygon_parts(boundary) -> list[Polygon]:
+    """Valid, non-empty polygons from a vertex list or any shapely geometry."""
+    if isinstance(boundary, shapely.Geometry):
+        geometry = boundary
+    else:
+        try:
+            vertices = np.asarray(boundary, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise PlanError(f"polygon vertices are not numbers: {exc}") from None
+        if vertices.ndim != 2 or vertices.shape[1] != 2:
+            raise PlanError("polygon must be a list of [x, y] pairs")
+        if not np.all(np.isfinite(vertices)):
+            raise PlanError("polygon has a non-finite coordinate")
+        if len(np.unique(vertices, axis=0)) < 3:
+            raise PlanError(f"polygon needs at least 3 distinct points, got {len(np.unique(vertices, axis=0))}")
+        geometry = Polygon(vertices)
+    if geometry.is_empty:
+        raise PlanError("polygon is empty")
+    if not geometry.is_valid:
+        geometry = shapely.make_valid(geometry)
+    parts = [g for g in shapely.get_parts(geometry) if isinstance(g, Polygon) and g.area > 0]
+    parts += [p for g in shapely.get_parts(geometry) if isinstance(g, MultiPolygon) for p in g.geoms]
+    if not parts:
+        raise PlanError("polygon encloses no area (degenerate or collinear points)")
+    return parts
+
+
+def perimeter_points(region: Polygon, arcs: np.ndarray) -> np.ndarray:
+    """Points at the given arc distances along the region's exterior (any array shape + (2,))."""
+    arcs = np.asarray(arcs, dtype=float)
+    points = shapely.line_interpolate_point(region.exterior, arcs.ravel() % region.exterior.length)
+    return shapely.get_coordinates(points).reshape(arcs.shape + (2,))
+
+
+def evenly_spaced_arcs(perimeter: float, n: int, offset: float = 0.0) -> np.ndarray:
+    """Arc distances of n points spaced perimeter/n apart, the first at `offset`."""
+    return (offset + perimeter * np.arange(n) / n) % perimeter
+
+
+def bottleneck_assignment(cost: np.ndarray) -> tuple[np.ndarray, float]:
+    """Column for each row of a square cost matrix, minimising the largest cost.
+
+    Threshold search: the smallest cost value t for which the edges with cost <= t
+    still hold a perfect matching is the optimal bottleneck; among the matchings
+    under t, linear assignment then picks the one with the smallest total.
+    """
+    cost = np.asarray(cost, dtype=float)
+    if cost.ndim != 2 or cost.shape[0] != cost.shape[1]:
+        raise PlanError(f"cost matrix must be square, got shape {cost.shape}")
+    values = np.unique(cost)
+    lo, hi = 0, len(values) - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if _has_perfect_matching(cost <= values[mid]):
+            hi = mid
+        else:
+            lo = mid + 1
+    threshold = values[lo]
+    _, columns = linear_sum_assignment(np.where(cost <= threshold, cost, np.inf))
+    return columns, float(threshold)
+
+
+def _has_perfect_matching(allowed: np.ndarray) -> bool:
+    matching = maximum_bipartite_matching(csr_matrix(allowed.astype(np.int8)), perm_type="column")
+    return bool(np.all(matching >= 0))
+
+
+def greedy_assignment(cost: np.ndarray) -> np.ndarray:
+    """Each row in turn takes its cheapest free column: the baseline the optimal plan is measured against."""
+    cost = np.asarray(cost, dtype=float)
+    free = np.ones(cost.shape[1], dtype=bool)
+    columns = np.empty(cost.shape[0], dtype=int)
+    for row in range(cost.shape[0]):
+        columns[row] = int(np.argmin(np.where(free, cost[row], np.inf)))
+        free[columns[row]] = False
+    return columns
+
+
+def containment_loop(region: Polygon, start_arc: float) -> np.ndarray:
+    """The whole perimeter as waypoints from arc distance `start_arc`, in the region's direction.
+
+    The closing edge back to the first point is implied (BHV_Waypoint with
+    repeat=forever goes from the last point to the first).
+    """
+    ring = np.asarray(region.exterior.coords)[:-1]
+    perimeter = region.exterior.length
+    vertex_arcs = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ring, axis=0).T))])
+    start_arc = start_arc % perimeter
+    tolerance = 1e-9 * max(perimeter, 1.0)
+    after = (vertex_arcs > start_arc + tolerance) & (vertex_arcs < perimeter - tolerance)
+    before = vertex_arcs < start_arc - tolerance
+    start = perimeter_points(region, np.array([start_arc]))
+    return np.concatenate([start, ring[after], ring[before]])
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Who starts where, and the loop each one runs.  Costs are metres, or seconds when speeds were given."""
+
+    region: Polygon
+    offset: float
+    starts: dict[str, Point]
+    start_arcs: dict[str, float]
+    transit: dict[str, float]
+
+    @property
+    def vehicles(self) -> list[str]:
+        return list(self.starts)
+
+    @property
+    def bottleneck(self) -> float:
+        return max(self.transit.values())
+
+    def loop(self, vehicle: str) -> np.ndarray:
+        return containment_loop(self.region, self.start_arcs[vehicle])
+
+
+def _transit_costs(points: np.ndarray, positions: np.ndarray, speeds: np.ndarray) -> np.ndarray:
+    """Vehicle x point transit cost for point arrays of shape (..., n, 2)."""
+    gaps = points[..., np.newaxis, :, :] - positions[:, np.newaxis, :]
+    return np.hypot(gaps[..., 0], gaps[..., 1]) / speeds[:, np.newaxis]
+
+
+def plan_containment(
+    region: Polygon,
+    positions: Mapping[str, Sequence[float]],
+    speeds: Mapping[str, float] | None = None,
+    rotations: int = 64,
+) -> Plan:
+    """Spread the vehicles evenly on the region's perimeter with the shortest longest transit.
+
+    For each of `rotations` offsets across one spacing the bottleneck assignment
+    is exact; the best offset is then refined continuously with that
+    assignment held, and kept only if re-assignment confirms it is no worse.
+    """
+    if not positions:
+        raise PlanError("no vehicles to plan for")
+    names = list(positions)
+    where = np.asarray([positions[name] for name in names], dtype=float)
+    if where.shape != (len(names), 2) or not np.all(np.isfinite(where)):
+        raise PlanError("vehicle positions must be finite x,y pairs")
+    pace = np.ones(len(names)) if speeds is None else np.asarray([speeds[name] for name in names], dtype=float)
+    if not np.all(pace > 0):
+        raise PlanError("vehicle speeds must be > 0")
+    n = len(names)
+    perimeter = region.exterior.length
+    spacing = perimeter / n
+
+    def solve(offset: float) -> tuple[float, float, np.ndarray]:
+        cost = _transit_costs(perimeter_points(region, evenly_spaced_arcs(perimeter, n, offset)), where, pace)
+        columns, worst = bottleneck_assignment(cost)
+        return worst, float(cost[np.arange(n), columns].sum()), columns
+
+    offsets = np.linspace(0.0, spacing, max(rotations, 1), endpoint=False)
+    best_offset, (best_worst, best_total, best_columns) = min(
+        ((offset, solve(offset)) for offset in offsets), key=lambda item: item[1][:2]
+    )
+    step = spacing / max(rotations, 1)
+
+    def held(offset: float) -> float:
+        cost = _transit_costs(perimeter_points(region, evenly_spaced_arcs(perimeter, n, offset)), where, pace)
+        return float(cost[np.arange(n), best_columns].max())
+
+    refined = minimize_scalar(held, bounds=(best_offset - step, best_offset + step), method="bounded",
+                              options={"xatol": 1e-3 * step})
+    candidate = solve(float(refined.x))
+    if candidate[:2] < (best_worst, best_total):
+        best_offset, (best_worst, best_total, best_columns) = float(refined.x), candidate
+
+    arcs = evenly_spaced_arcs(perimeter, n, best_offset)
+    points = perimeter_points(region, arcs)
+    cost = _transit_costs(points, where, pace)
+    return Plan(
+        region=region,
+        offset=float(best_offset % spacing),
+        starts={name: (float(points[col, 0]), float(points[col, 1])) for name, col in zip(names, best_columns)},
+        start_arcs={name: float(arcs[col]) for name, col in zip(names, best_columns)},
+        transit={name: float(cost[row, col]) for row, (name, col) in enumerate(zip(names, best_columns))},
+    )
+
+
+def reshare(plan: Plan, positions: Mapping[str, Sequence[float]], speeds: Mapping[str, float] | None = None) -> Plan:
+    """Spread the loop of `plan` over whoever reports now (survivors and rejoiners), from where they are."""
+    if not positions:
+        raise PlanError("every vehicle has dropped out; nothing to re-share")
+    return plan_containment(plan.region, positions, speeds)
+
+
+@dataclass(frozen=True)
+class ForecastChoice:
+    horizon_h: float
+    arrival_h: float
+    plan: Plan
+
+
+def choose_forecast(
+    forecasts: Mapping[float, object],
+    positions: Mapping[str, Sequence[float]],
+    speeds: Mapping[str, float],
+    standoff: float,
+    age_h: float = 0.0,
+) -> ForecastChoice:
+    """Aim at the forecast whose horizon best matches when the fleet can be on its perimeter.
+
+    A 15 h forecast is wasted on a fleet that is there in 2 h, and a 3 h one is
+    stale for a fleet that needs 10 h; `age_h` is how old the forecasts already
+    are.  Ties go to the shorter (more certain) horizon.
+    """
+    if not forecasts:
+        raise PlanError("no forecast horizons on offer")
+    choices = []
+    for horizon in sorted(forecasts):
+        plan = plan_containment(containment_region(forecasts[horizon], standoff), positions, speeds)
+        arrival = age_h + plan.bottleneck / 3600.0
+        choices.append((abs(float(horizon) - arrival), ForecastChoice(float(horizon), arrival, plan)))
+    return min(choices, key=lambda item: item[0])[1]
