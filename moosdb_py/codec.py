@@ -1,0 +1,191 @@
+"""The MOOS V10 wire format, sans I/O: bytes in, messages out, and back.
+
+Layouts follow ../shared/spec/moos-wire-protocol.md §1-§4: little-endian, a message is
+length|id|type|dtype|src|src_aux|community|key|time|dval|dval2|sval, a packet is
+length|count|compression-flag|messages, and a connection starts with a 32-byte protocol slot.
+The C++ reader silently stops at the first bad message; this one raises `CodecError` instead,
+so a server can drop the offending client with the reason.
+"""
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable
+
+from .message import BINARY, DATA_TYPES, MSG_TYPES, MOOSMsg
+
+PROTOCOL_NAME = b"ELKS CAN'T DANCE 2/8/10"
+PROTOCOL_SLOT_SIZE = 32
+PROTOCOL_SLOT = PROTOCOL_NAME.ljust(PROTOCOL_SLOT_SIZE, b"\0")
+PACKET_HEADER_SIZE = 9
+MIN_MESSAGE_SIZE = 54
+DEFAULT_MAX_PACKET = 64 * 1024 * 1024
+
+_INT = struct.Struct("<i")
+_MSG_HEAD = struct.Struct("<iicc")
+_DOUBLES = struct.Struct("<ddd")
+_PKT_HEAD = struct.Struct("<iiB")
+_EMPTY_STR = _INT.pack(0)
+
+
+class CodecError(ValueError):
+    """Bytes that are not a valid MOOS message or packet."""
+
+
+def _text(value: str) -> bytes:
+    """latin-1 keeps every byte value; text outside it goes out as UTF-8 rather than failing."""
+    try:
+        return value.encode("latin-1")
+    except UnicodeEncodeError:
+        return value.encode("utf-8")
+
+
+def _field(data: bytes) -> bytes:
+    return _INT.pack(len(data)) + data if data else _EMPTY_STR
+
+
+def encode_message(msg: MOOSMsg) -> bytes:
+    src, aux, comm, key = _text(msg.source), _text(msg.source_aux), _text(msg.community), _text(msg.key)
+    sval = msg.binary if msg.data_type == BINARY else _text(msg.string)
+    length = MIN_MESSAGE_SIZE + len(src) + len(aux) + len(comm) + len(key) + len(sval)
+    return b"".join((
+        _MSG_HEAD.pack(length, msg.id, msg.msg_type.encode("latin-1"), msg.data_type.encode("latin-1")),
+        _field(src), _field(aux), _field(comm), _field(key),
+        _DOUBLES.pack(msg.time, msg.double, msg.double_aux),
+        _field(sval),
+    ))
+
+
+def decode_message(buf: bytes, pos: int = 0, *, keep_wire: bool = False) -> tuple[MOOSMsg, int]:
+    """Decode the message starting at `pos`; return it and the offset just past it."""
+    avail = len(buf)
+    if avail - pos < MIN_MESSAGE_SIZE:
+        raise CodecError(f"truncated message at byte {pos}: {avail - pos} bytes left, a message needs >= 54")
+    length, msg_id, mtype, dtype = _MSG_HEAD.unpack_from(buf, pos)
+    end = pos + length
+    if length < MIN_MESSAGE_SIZE or end > avail:
+        raise CodecError(f"message at byte {pos} claims length {length} but {avail - pos} bytes remain")
+    msg_type, data_type = mtype.decode("latin-1"), dtype.decode("latin-1")
+    if msg_type not in MSG_TYPES:
+        raise CodecError(f"unknown message type {msg_type!r} at byte {pos}")
+    if data_type not in DATA_TYPES:
+        raise CodecError(f"unknown data type {data_type!r} at byte {pos}")
+    p = pos + 10
+    strings = []
+    for name in ("source", "source aux", "community", "key"):
+        (n,) = _INT.unpack_from(buf, p)
+        p += 4
+        if n < 0 or p + n > end - 28:
+            raise CodecError(f"{name} length {n} runs past the message at byte {pos}")
+        strings.append(buf[p:p + n].decode("latin-1"))
+        p += n
+    time, dval, dval2 = _DOUBLES.unpack_from(buf, p)
+    p += 24
+    (n,) = _INT.unpack_from(buf, p)
+    p += 4
+    if n < 0 or p + n != end:
+        raise CodecError(f"message at byte {pos}: length field {length} disagrees with its fields "
+                         f"({p + max(n, 0) - pos} bytes)")
+    sval = buf[p:end]
+    msg = MOOSMsg(msg_type, data_type, strings[3], dval, "", b"", strings[0], strings[1], strings[2],
+                  time, msg_id, dval2)
+    if data_type == BINARY:
+        msg.binary = bytes(sval)
+    else:
+        msg.string = sval.decode("latin-1")
+    if keep_wire:
+        msg.wire = bytes(buf[pos:end])
+    return msg, end
+
+
+def with_community(wire: bytes, community: bytes) -> bytes:
+    """Re-encode a message with an empty community field filled in, splicing instead of re-encoding."""
+    p = 10
+    for _ in range(2):
+        p += 4 + _INT.unpack_from(wire, p)[0]
+    if _INT.unpack_from(wire, p)[0] != 0:
+        raise CodecError("community already set")
+    head = _MSG_HEAD.unpack_from(wire, 0)
+    return b"".join((_MSG_HEAD.pack(head[0] + len(community), *head[1:]), wire[10:p],
+                     _INT.pack(len(community)), community, wire[p + 4:]))
+
+
+def pack_packet(wires: Iterable[bytes]) -> bytes:
+    """A packet of already-encoded messages (how the DB forwards mail untouched)."""
+    wires = wires if isinstance(wires, list) else list(wires)
+    body = b"".join(wires)
+    return _PKT_HEAD.pack(PACKET_HEADER_SIZE + len(body), len(wires), 0) + body
+
+
+def encode_packet(msgs: Iterable[MOOSMsg]) -> bytes:
+    return pack_packet([encode_message(m) for m in msgs])
+
+
+def decode_packet(packet: bytes, *, keep_wire: bool = False) -> list[MOOSMsg]:
+    if len(packet) < PACKET_HEADER_SIZE:
+        raise CodecError(f"packet of {len(packet)} bytes is shorter than its 9-byte header")
+    total, count, compressed = _PKT_HEAD.unpack_from(packet, 0)
+    if total != len(packet):
+        raise CodecError(f"packet length field {total} but {len(packet)} bytes given")
+    if compressed:
+        raise CodecError(f"compressed packets are not supported (flag {compressed})")
+    if count < 0 or count * MIN_MESSAGE_SIZE > total - PACKET_HEADER_SIZE:
+        raise CodecError(f"packet claims {count} messages in {total} bytes")
+    msgs = []
+    pos = PACKET_HEADER_SIZE
+    for _ in range(count):
+        msg, pos = decode_message(packet, pos, keep_wire=keep_wire)
+        msgs.append(msg)
+    if pos != total:
+        raise CodecError(f"packet has {total - pos} stray bytes after its {count} messages")
+    return msgs
+
+
+def protocol_matches(slot: bytes) -> bool:
+    """The DB's check of the 32-byte slot: C-string compare, case-insensitive."""
+    return slot.split(b"\0", 1)[0].upper() == PROTOCOL_NAME.upper()
+
+
+class FramingError(ValueError):
+    """A packet length in the stream that cannot be right (negative, too small, over the cap)."""
+
+
+class StreamFramer:
+    """Split a TCP byte stream into protocol slot and packets, however the bytes were chunked.
+
+    `feed` returns every unit completed by the new bytes; a length header outside
+    [9, max_packet] raises `FramingError` as soon as its 4 bytes are in, before any allocation.
+    """
+
+    def __init__(self, *, protocol_slot: bool = False, max_packet: int = DEFAULT_MAX_PACKET):
+        self._buf = bytearray()
+        self._need_slot = protocol_slot
+        self.max_packet = max_packet
+
+    @property
+    def buffered(self) -> int:
+        return len(self._buf)
+
+    def feed(self, data: bytes) -> list[bytes]:
+        buf = self._buf
+        buf += data
+        out: list[bytes] = []
+        pos = 0
+        avail = len(buf)
+        if self._need_slot:
+            if avail < PROTOCOL_SLOT_SIZE:
+                return out
+            out.append(bytes(buf[:PROTOCOL_SLOT_SIZE]))
+            pos = PROTOCOL_SLOT_SIZE
+            self._need_slot = False
+        unpack = _INT.unpack_from
+        while avail - pos >= 4:
+            (total,) = unpack(buf, pos)
+            if total < PACKET_HEADER_SIZE or total > self.max_packet:
+                raise FramingError(f"packet length {total} outside [{PACKET_HEADER_SIZE}, {self.max_packet}]")
+            if avail - pos < total:
+                break
+            out.append(bytes(buf[pos:pos + total]))
+            pos += total
+        if pos:
+            del buf[:pos]
+        return out

@@ -1,0 +1,101 @@
+"""CMOOSMsg in Python: one MOOS message, with the field names and defaults the C++ code uses."""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+
+# Message-type letters (MOOSMsg.h); the DB and client dispatch on these.
+NOTIFY = "N"
+REGISTER = "R"
+UNREGISTER = "U"
+WILDCARD_REGISTER = "*"
+WILDCARD_UNREGISTER = "/"
+COMMAND = "C"
+SERVER_REQUEST = "Q"
+TIMING = "T"
+WELCOME = "W"
+POISON = "K"
+DATA = "i"
+NULL_MSG = "."
+NOT_SET = "~"
+ANONYMOUS = "A"
+TERMINATE = "^"
+MSG_TYPES = frozenset("NRU*/CQTWKi.~A^")
+
+DOUBLE = "D"
+STRING = "S"
+BINARY = "B"
+DATA_TYPES = frozenset("DSB")
+
+SERVER_REQUEST_ID = -2
+ASYNC_TIMING_KEY = "_async_timing"
+
+
+def moos_time(time_warp: float = 1.0) -> float:
+    """MOOS time: the wall clock scaled by the time warp, as every MOOS process stamps its mail."""
+    return _time.time() * time_warp
+
+
+@dataclass(slots=True)
+class MOOSMsg:
+    """A MOOS message. Unused doubles are -1 and unset strings empty, as on the wire.
+
+    `string` holds the sval field as latin-1 text (lossless for any bytes); for binary ('B')
+    messages the payload is in `binary` instead. `wire`, when set, is the exact encoding the
+    message arrived in, so a DB can forward it without re-encoding.
+    """
+
+    msg_type: str = NULL_MSG
+    data_type: str = DOUBLE
+    key: str = ""
+    double: float = -1.0
+    string: str = ""
+    binary: bytes = b""
+    source: str = ""
+    source_aux: str = ""
+    community: str = ""
+    time: float = -1.0
+    id: int = -1
+    double_aux: float = -1.0
+    wire: bytes | None = field(default=None, compare=False, repr=False)
+
+    @classmethod
+    def notification(cls, key: str, value: float | str | bytes, *, time: float, source: str = "",
+                     source_aux: str = "", msg_id: int = -1) -> "MOOSMsg":
+        """A notify carrying a double, string or binary value, typed as the C++ client types it."""
+        if isinstance(value, (bytes, bytearray, memoryview)):
+            return cls(NOTIFY, BINARY, key, binary=bytes(value), source=source, source_aux=source_aux,
+                       time=time, id=msg_id)
+        if isinstance(value, str):
+            return cls(NOTIFY, STRING, key, string=value, source=source, source_aux=source_aux,
+                       time=time, id=msg_id)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise TypeError(f"MOOS values are float, str or bytes, not {type(value).__name__} ({key})")
+        return cls(NOTIFY, DOUBLE, key, double=float(value), source=source, source_aux=source_aux,
+                   time=time, id=msg_id)
+
+    @property
+    def value(self) -> float | str | bytes:
+        if self.data_type == DOUBLE:
+            return self.double
+        if self.data_type == BINARY:
+            return self.binary
+        return self.string
+
+    @property
+    def sval_bytes(self) -> bytes:
+        """The raw sval field."""
+        return self.binary if self.data_type == BINARY else self.string.encode("latin-1")
+
+    def is_double(self) -> bool:
+        return self.data_type == DOUBLE
+
+    def is_string(self) -> bool:
+        return self.data_type == STRING
+
+    def is_binary(self) -> bool:
+        return self.data_type == BINARY
+
+    def __str__(self) -> str:
+        value = f"<{len(self.binary)} bytes>" if self.is_binary() else self.value
+        return f"{self.msg_type} {self.key}={value!r} from {self.source or '?'} at {self.time:.3f}"

@@ -1,0 +1,43 @@
+"""Shared test helpers: waiting on conditions (never bare sleeps) and reading the conformance captures."""
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
+CONFORMANCE = SHARED / "conformance"
+
+
+def wait_until(predicate: Callable[[], object], timeout: float = 5.0, interval: float = 0.01):
+    """Poll `predicate` until it returns something truthy; return that, or fail after `timeout` s."""
+    deadline = time.monotonic() + timeout
+    while True:
+        result = predicate()
+        if result:
+            return result
+        if time.monotonic() > deadline:
+            raise AssertionError(f"condition not met within {timeout} s: {getattr(predicate, '__name__', predicate)}")
+        time.sleep(interval)
+
+
+async def async_wait_until(predicate: Callable[[], object], timeout: float = 5.0, interval: float = 0.005):
+    """`wait_until` for code running inside an event loop."""
+    deadline = time.monotonic() + timeout
+    while True:
+        result = predicate()
+        if result:
+            return result
+        if time.monotonic() > deadline:
+            raise AssertionError(f"condition not met within {timeout} s: {getattr(predicate, '__name__', predicate)}")
+        await asyncio.sleep(interval)
+
+
+def conformance_files() -> list[Path]:
+    return sorted(CONFORMANCE.glob("*.json"))
+
+
+def load_capture(path: Path) -> dict:
+    return json.loads(path.read_text())
