@@ -1,0 +1,74 @@
+"""Reading typed values out of a ProcessConfig block, with errors that name the parameter.
+
+The functions take anything with `get(key, default)` whose keys are the lower-case
+parameter names: a `moosdb_py.mission.ProcessConfig` (case-insensitive, last one
+wins) or a plain dict, which keeps the vehicle models testable without a mission.
+"""
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+
+class ConfigLike(Protocol):
+    def get(self, key: str, default=None): ...
+
+
+TRUE_WORDS = {"true", "yes", "on", "1"}
+FALSE_WORDS = {"false", "no", "off", "0"}
+
+
+def parse_bool(text: str, what: str) -> bool:
+    word = str(text).strip().lower()
+    if word in TRUE_WORDS:
+        return True
+    if word in FALSE_WORDS:
+        return False
+    raise ValueError(f"{what}: expected true or false, got {text!r}")
+
+
+def parse_float(text: str, what: str, lo: float | None = None, hi: float | None = None) -> float:
+    try:
+        value = float(str(text).strip())
+    except ValueError:
+        raise ValueError(f"{what}: expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{what}: expected a finite number, got {text!r}")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise ValueError(f"{what}: {value:g} is outside [{lo}, {hi}]")
+    return value
+
+
+def config_float(cfg: ConfigLike, key: str, default: float, lo: float | None = None,
+                 hi: float | None = None) -> float:
+    text = cfg.get(key, None)
+    if text is None or str(text).strip() == "":
+        return default
+    return parse_float(text, key, lo, hi)
+
+
+def config_bool(cfg: ConfigLike, key: str, default: bool) -> bool:
+    text = cfg.get(key, None)
+    if text is None or str(text).strip() == "":
+        return default
+    return parse_bool(text, key)
+
+
+def config_str(cfg: ConfigLike, key: str, default: str) -> str:
+    text = cfg.get(key, None)
+    if text is None or str(text).strip() == "":
+        return default
+    return str(text).strip()
+
+
+def parse_pairs(text: str) -> dict[str, str]:
+    """`a=1, b = x` -> {'a': '1', 'b': 'x'} (keys lower-cased; last one wins)."""
+    pairs: dict[str, str] = {}
+    for part in str(text).split(","):
+        if not part.strip():
+            continue
+        key, sep, value = part.partition("=")
+        if not sep:
+            raise ValueError(f"{part.strip()!r} is not a key=value pair")
+        pairs[key.strip().lower()] = value.strip()
+    return pairs

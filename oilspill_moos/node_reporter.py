@@ -1,0 +1,287 @@
+"""pNodeReporter: NODE_REPORT_LOCAL (and PLATFORM_REPORT_LOCAL) in the exact MOOS string format.
+
+`NodeReportBuilder` is pure: it is fed mail and asked for a report at a time;
+viewers, the helm's contact ledger and uFldShoreBroker parse what it writes, so
+field order and number formatting follow field-apps.md section 3 to the byte.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from oilspill_moos.app_config import ConfigLike, config_bool, config_float, config_str, parse_float
+from oilspill_moos.geodesy import LocalGrid
+
+CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
+
+
+def format_number(value: float, decimals: int = 2) -> str:
+    """Fixed point with at most `decimals` places, trailing zeros (and a bare point) removed."""
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def yaw_from_heading(heading: float) -> float:
+    """The math-convention angle (90 - heading) in radians, wrapped into [-pi, pi]."""
+    rad = math.radians(90.0 - heading)
+    return math.atan2(math.sin(rad), math.cos(rad))
+
+
+@dataclass
+class PlatReportInput:
+    var: str
+    gap: float = 0.0
+    alias: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> "PlatReportInput":
+        parts = [p.strip() for p in str(text).split(",") if p.strip()]
+        if not parts or "=" in parts[0]:
+            raise ValueError(f"plat_report_input: expected 'VAR[,gap=secs][,alias=NAME]', got {text!r}")
+        item = cls(parts[0])
+        for part in parts[1:]:
+            key, sep, value = part.partition("=")
+            key = key.strip().lower()
+            if key == "gap" and sep:
+                item.gap = parse_float(value, "plat_report_input gap", lo=0.0)
+            elif key == "alias" and sep and value.strip():
+                item.alias = value.strip()
+            else:
+                raise ValueError(f"plat_report_input: unknown field {part!r} in {text!r}")
+        return item
+
+
+@dataclass
+class ReporterParams:
+    platform_type: str = "unknown"
+    platform_color: str = ""
+    platform_length: float = 0.0
+    platform_beam: float = 0.0
+    platform_group: str = ""
+    platform_vsource: str = ""
+    terse_reports: bool = False
+    blackout_interval: float = 0.0
+    blackout_variance: float = 0.0
+    node_report_output: str = "NODE_REPORT_LOCAL"
+    plat_report_output: str = "PLATFORM_REPORT_LOCAL"
+    plat_report_inputs: list[PlatReportInput] = field(default_factory=list)
+    nohelm_threshold: float = 5.0
+    crossfill_policy: str = "literal"
+    coord_policy_global: bool = False
+    paused: bool = False
+
+    @classmethod
+    def from_config(cls, cfg: ConfigLike, plat_inputs: list[str] = ()) -> "ReporterParams":
+        policy = config_str(cfg, "crossfill_policy", "literal").lower()
+        if policy not in CROSSFILL_POLICIES:
+            raise ValueError(f"crossfill_policy: {policy!r} is not one of {', '.join(CROSSFILL_POLICIES)}")
+        ptype = cfg.get("platform_type", None) or cfg.get("vessel_type", None) or "unknown"
+        group = cfg.get("platform_group", None) or cfg.get("group", None) or ""
+        output = config_str(cfg, "node_report_output", "NODE_REPORT_LOCAL")
+        if not output.replace("_", "").isalnum():
+            raise ValueError(f"node_report_output: {output!r} is not a MOOS variable name")
+        return cls(
+            platform_type=str(ptype).strip(),
+            platform_color=config_str(cfg, "platform_color", ""),
+            platform_length=config_float(cfg, "platform_length", 0.0, lo=0.0),
+            platform_beam=config_float(cfg, "platform_beam", 0.0, lo=0.0),
+            platform_group=str(group).strip(),
+            platform_vsource=config_str(cfg, "platform_vsource", ""),
+            terse_reports=config_bool(cfg, "terse_reports", False),
+            blackout_interval=config_float(cfg, "blackout_interval", 0.0, lo=0.0),
+            blackout_variance=config_float(cfg, "blackout_variance", 0.0, lo=0.0),
+            node_report_output=output,
+            plat_report_output=config_str(cfg, "plat_report_output", "PLATFORM_REPORT_LOCAL"),
+            plat_report_inputs=[PlatReportInput.parse(t) for t in plat_inputs],
+            nohelm_threshold=config_float(cfg, "nohelm_threshold", 5.0, lo=0.0),
+            crossfill_policy=policy,
+            coord_policy_global=config_bool(cfg, "coord_policy_global", False),
+            paused=config_bool(cfg, "paused", False),
+        )
+
+
+def summary_modes(summary: str) -> str | None:
+    """The `modes=` field of an IVPHELM_SUMMARY, if it has one."""
+    for part in summary.split(","):
+        key, sep, value = part.partition("=")
+        if sep and key.strip().lower() == "modes":
+            return value.strip()
+    return None
+
+
+class NodeReportBuilder:
+    """Keeps what pNodeReporter has heard and writes the report strings."""
+
+    def __init__(self, name: str, params: ReporterParams, grid: LocalGrid | None = None,
+                 rng: np.random.Generator | None = None):
+        self.name = name
+        self.params = params
+        self.grid = grid
+        self.rng = rng or np.random.default_rng()
+        self.nav: dict[str, float] = {}
+        self.xy_time = -math.inf
+        self.latlon_time = -math.inf
+        self.yaw_seen = False
+        self.helm_state: str | None = None
+        self.helm_state_time = 0.0
+        self.helm_modes: str | None = None
+        self.allstop = "unknown"
+        self.mode_aux = ""
+        self.load_warning = ""
+        self.thrust_mode_reverse = False
+        self.transparency: float | None = None
+        self.color = params.platform_color
+        self.group = params.platform_group
+        self.paused = params.paused
+        self.index = 0
+        self._next_post_time = -math.inf
+        self.plat_values: dict[str, str] = {}
+        self._plat_changed: set[str] = set()
+        self._plat_last_post: dict[str, float] = {}
+
+    # ---- input ---------------------------------------------------------------------------
+    def on_mail(self, key: str, value, time: float) -> None:
+        """Take one message; values of the wrong type for a known key are ignored."""
+        if isinstance(value, (int, float)):
+            self._on_double(key, float(value), time)
+        elif isinstance(value, str):
+            self._on_string(key, value, time)
+        if key in {item.var for item in self.params.plat_report_inputs}:
+            text = format_number(value, 6) if isinstance(value, (int, float)) else str(value)
+            if self.plat_values.get(key) != text:
+                self.plat_values[key] = text
+                self._plat_changed.add(key)
+
+    def _on_double(self, key: str, value: float, time: float) -> None:
+        nav_keys = {"NAV_X": "x", "NAV_Y": "y", "NAV_LAT": "lat", "NAV_LONG": "lon", "NAV_SPEED": "spd",
+                    "NAV_HEADING": "hdg", "NAV_DEPTH": "dep"}
+        if key in nav_keys:
+            self.nav[nav_keys[key]] = value
+            if key in ("NAV_X", "NAV_Y"):
+                self.xy_time = time
+            elif key in ("NAV_LAT", "NAV_LONG"):
+                self.latlon_time = time
+        elif key == "NAV_YAW":
+            self.yaw_seen = True
+        elif key == "NAV_TRANSP":
+            self.transparency = value
+
+    def _on_string(self, key: str, value: str, time: float) -> None:
+        word = value.strip()
+        if key == "IVPHELM_STATE":
+            self.helm_state = word
+            self.helm_state_time = time
+        elif key == "IVPHELM_SUMMARY":
+            modes = summary_modes(word)
+            if modes is not None:
+                self.helm_modes = modes
+        elif key == "IVPHELM_ALLSTOP":
+            self.allstop = word
+        elif key == "AUX_MODE":
+            self.mode_aux = word
+        elif key == "LOAD_WARNING":
+            self.load_warning = word
+        elif key == "THRUST_MODE_REVERSE":
+            self.thrust_mode_reverse = word.lower() == "true"
+        elif key == "NODE_GROUP_UPDATE":
+            self.group = word
+        elif key in ("NODE_COLOR_CHANGE", "PLATFORM_COLOR"):
+            self.color = word
+        elif key == "PNR_PAUSE":
+            self.paused = word.lower() == "true"
+
+    # ---- output --------------------------------------------------------------------------
+    def mode(self, now: float) -> str:
+        if self.helm_state is None:
+            return "NOHELM-EVER"
+        age = now - self.helm_state_time
+        if age > self.params.nohelm_threshold:
+            return f"NOHELM-{int(age)}"
+        if self.helm_state == "DRIVE" and self.helm_modes:
+            return self.helm_modes
+        return self.helm_state
+
+    def position(self) -> dict[str, float]:
+        """x, y, lat, lon as known, cross-filled per the crossfill policy."""
+        pos = {k: self.nav[k] for k in ("x", "y", "lat", "lon") if k in self.nav}
+        has_xy = "x" in pos and "y" in pos
+        has_ll = "lat" in pos and "lon" in pos
+        policy = self.params.crossfill_policy
+        if self.grid is None or policy == "literal":
+            return pos
+        from_ll = has_ll and (
+            policy == "global"
+            or (policy == "fill-empty" and not has_xy)
+            or (policy == "use-latest" and self.latlon_time > self.xy_time))
+        from_xy = has_xy and not from_ll and (
+            (policy == "fill-empty" and not has_ll)
+            or (policy == "use-latest" and self.xy_time >= self.latlon_time))
+        if from_ll:
+            pos["x"], pos["y"] = self.grid.to_local(pos["lat"], pos["lon"])
+        elif from_xy:
+            pos["lat"], pos["lon"] = self.grid.to_latlon(pos["x"], pos["y"])
+        return pos
+
+    def node_report(self, now: float) -> str | None:
+        """The next NODE_REPORT_LOCAL value, or None (no nav yet, paused, or in blackout)."""
+        pos = self.position()
+        if self.paused or not (("x" in pos and "y" in pos) or ("lat" in pos and "lon" in pos)):
+            return None
+        if now < self._next_post_time:
+            return None
+        p = self.params
+        fields: list[tuple[str, str]] = [("NAME", self.name)]
+        if not p.coord_policy_global and "x" in pos and "y" in pos:
+            fields += [("X", format_number(pos["x"])), ("Y", format_number(pos["y"]))]
+        hdg = self.nav.get("hdg", 0.0)
+        fields += [("SPD", format_number(self.nav.get("spd", 0.0))), ("HDG", format_number(hdg))]
+        if not p.terse_reports:
+            fields.append(("DEP", format_number(self.nav.get("dep", 0.0))))
+        if "lat" in pos and "lon" in pos and (not p.terse_reports or p.coord_policy_global):
+            fields += [("LAT", format_number(pos["lat"], 8)), ("LON", format_number(pos["lon"], 8))]
+        fields.append(("TYPE", p.platform_type))
+        optional = [("COLOR", self.color), ("GROUP", self.group), ("VSOURCE", p.platform_vsource)]
+        fields += [(k, v) for k, v in optional if v]
+        fields.append(("MODE", self.mode(now)))
+        if self.mode_aux:
+            fields.append(("MODE_AUX", self.mode_aux))
+        fields.append(("ALLSTOP", self.allstop))
+        if self.load_warning:
+            fields.append(("LOAD_WARNING", self.load_warning))
+        if self.index:
+            fields.append(("INDEX", str(self.index)))
+        if self.thrust_mode_reverse:
+            fields.append(("THRUST_MODE_REVERSE", "true"))
+        if self.yaw_seen and not p.terse_reports:
+            fields.append(("YAW", format_number(yaw_from_heading(hdg), 7)))
+        fields.append(("TIME", format_number(now, 2)))
+        if self.transparency is not None:
+            fields.append(("TRANSPARENCY", format_number(self.transparency)))
+        if p.platform_length:
+            fields.append(("LENGTH", format_number(p.platform_length)))
+        if p.platform_beam:
+            fields.append(("BEAM", format_number(p.platform_beam)))
+        self.index += 1
+        if p.blackout_interval > 0.0:
+            jitter = self.rng.uniform(-p.blackout_variance, p.blackout_variance) if p.blackout_variance else 0.0
+            self._next_post_time = now + max(0.0, p.blackout_interval + jitter)
+        return ",".join(f"{k}={v}" for k, v in fields)
+
+    def platform_report(self, now: float) -> str | None:
+        """PLATFORM_REPORT_LOCAL when a configured input changed and its gap has passed."""
+        due = [item for item in self.params.plat_report_inputs
+               if item.var in self._plat_changed
+               and now - self._plat_last_post.get(item.var, -math.inf) >= item.gap]
+        if not due:
+            return None
+        for item in due:
+            self._plat_changed.discard(item.var)
+            self._plat_last_post[item.var] = now
+        parts = [f"platform={self.name}", f"utc_time={format_number(now, 2)}"]
+        parts += [f"{item.alias or item.var}={self.plat_values[item.var]}"
+                  for item in self.params.plat_report_inputs if item.var in self.plat_values]
+        return ",".join(parts)

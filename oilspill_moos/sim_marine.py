@@ -1,0 +1,278 @@
+"""uSimMarine: the 3-DOF kinematic boat model of uSimMarineV22 and its MOOS app.
+
+The model (`MarineModel`) is pure: rudder/thrust in, state out, time step given.
+It reproduces the reference simulator's arithmetic (field-apps.md section 1),
+including its quirks, so a mission flies the same laps in our stack as in C++.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from oilspill_moos.app_config import (
+    ConfigLike,
+    config_bool,
+    config_float,
+    config_str,
+    parse_bool,
+    parse_float,
+)
+
+# The speed at which the turn rate reaches its configured value (the reference
+# simulator's internal "full speed" of its turn-rate map).
+TURN_RATE_FULL_SPEED = 5.0
+
+
+@dataclass
+class NavState:
+    x: float = 0.0
+    y: float = 0.0
+    heading: float = 0.0
+    speed: float = 0.0
+    depth: float = 0.0
+
+    @classmethod
+    def parse(cls, text: str, what: str = "start_pos") -> "NavState":
+        """`x=0, y=-20, heading=180, speed=0[, depth=0]` or positional `x,y,heading,speed[,depth]`."""
+        parts = [p.strip() for p in str(text).split(",") if p.strip()]
+        names = ("x", "y", "heading", "speed", "depth")
+        values: dict[str, float] = {}
+        if parts and all("=" in p for p in parts):
+            for part in parts:
+                key, _, value = part.partition("=")
+                key = key.strip().lower()
+                if key not in names:
+                    raise ValueError(f"{what}: unknown field {key!r} (expected {', '.join(names)})")
+                values[key] = parse_float(value, f"{what} {key}")
+        elif parts and not any("=" in p for p in parts) and len(parts) <= len(names):
+            for key, value in zip(names, parts):
+                values[key] = parse_float(value, f"{what} {key}")
+        else:
+            raise ValueError(f"{what}: expected 'x=.., y=.., heading=.., speed=..' or 'x,y,heading,speed', got {text!r}")
+        state = cls(**values)
+        state.heading %= 360.0
+        return state
+
+
+class ThrustMap:
+    """Thrust (-100..100) to speed: piecewise linear over `thrust:speed` pairs, (0,0) implied."""
+
+    def __init__(self, pairs: list[tuple[float, float]] | None = None, thrust_factor: float = 20.0,
+                 reflect: bool = False):
+        self.thrust_factor = thrust_factor
+        self.reflect = reflect
+        table = dict(pairs or [])
+        if table:
+            table.setdefault(0.0, 0.0)
+        keys = sorted(table)
+        self.thrusts = np.array(keys, dtype=float)
+        self.speeds = np.array([table[k] for k in keys], dtype=float)
+
+    @classmethod
+    def parse(cls, text: str, thrust_factor: float = 20.0, reflect: bool = False) -> "ThrustMap":
+        pairs = []
+        for item in str(text).split(","):
+            if not item.strip():
+                continue
+            thrust, sep, speed = item.partition(":")
+            if not sep:
+                raise ValueError(f"thrust_map: {item.strip()!r} is not a thrust:speed pair")
+            pairs.append((parse_float(thrust, "thrust_map thrust", -100.0, 100.0),
+                          parse_float(speed, "thrust_map speed")))
+        thrusts = [t for t, _ in pairs]
+        if len(set(thrusts)) != len(thrusts):
+            raise ValueError("thrust_map: a thrust value appears twice")
+        ordered = sorted(pairs)
+        if any(b[1] < a[1] for a, b in zip(ordered, ordered[1:])):
+            raise ValueError("thrust_map: speed must not fall as thrust rises")
+        return cls(pairs, thrust_factor, reflect)
+
+    @property
+    def empty(self) -> bool:
+        return self.thrusts.size == 0
+
+    def speed(self, thrust: float) -> float:
+        if self.empty:
+            return thrust / self.thrust_factor if self.thrust_factor else 0.0
+        if thrust < 0.0 and self.reflect:
+            return -self.speed(-thrust)
+        if thrust < 0.0 and self.thrusts[0] >= 0.0:
+            return 0.0
+        return float(np.interp(thrust, self.thrusts, self.speeds))
+
+
+@dataclass
+class SimParams:
+    """The uSimMarineV22 ProcessConfig parameters the model and app use."""
+
+    start: NavState = field(default_factory=NavState)
+    prefix: str = "USM"
+    turn_rate: float = 70.0
+    thrust_map: ThrustMap = field(default_factory=ThrustMap)
+    max_acceleration: float = 0.0
+    max_deceleration: float = 0.5
+    turn_spd_loss: float = 0.85
+    max_speed: float = 5.0
+    max_rudder_degs_per_sec: float = 0.0
+    drift_x: float = 0.0
+    drift_y: float = 0.0
+    rotate_speed: float = 0.0
+    buoyancy_rate: float = 0.025
+    max_depth_rate: float = 0.5
+    max_depth_rate_speed: float = 2.0
+    water_depth: float = 0.0
+    sim_pause: bool = False
+
+    @classmethod
+    def from_config(cls, cfg: ConfigLike) -> "SimParams":
+        start_text = cfg.get("start_pos", None)
+        start = NavState.parse(start_text) if start_text else NavState()
+        for name in ("x", "y", "heading", "speed", "depth"):
+            setattr(start, name, config_float(cfg, f"start_{name}", getattr(start, name)))
+        start.heading %= 360.0
+        factor = config_float(cfg, "thrust_factor", 20.0, lo=0.0)
+        reflect = config_bool(cfg, "thrust_reflect", False)
+        map_text = cfg.get("thrust_map", None)
+        thrust_map = ThrustMap.parse(map_text, factor, reflect) if map_text else ThrustMap(None, factor, reflect)
+        drift_x = config_float(cfg, "drift_x", 0.0)
+        drift_y = config_float(cfg, "drift_y", 0.0)
+        vector = cfg.get("drift_vector", None)
+        if vector:
+            dx, dy = parse_drift_vector(vector, "drift_vector")
+            drift_x, drift_y = drift_x + dx, drift_y + dy
+        return cls(
+            start=start,
+            prefix=config_str(cfg, "prefix", "USM"),
+            turn_rate=config_float(cfg, "turn_rate", 70.0, 0.0, 100.0),
+            thrust_map=thrust_map,
+            max_acceleration=config_float(cfg, "max_acceleration", 0.0, lo=0.0),
+            max_deceleration=config_float(cfg, "max_deceleration", 0.5, lo=0.0),
+            turn_spd_loss=config_float(cfg, "turn_spd_loss", 0.85, 0.0, 1.0),
+            max_speed=config_float(cfg, "max_speed", 5.0, lo=0.0),
+            max_rudder_degs_per_sec=config_float(cfg, "max_rudder_degs_per_sec", 0.0, lo=0.0),
+            drift_x=drift_x,
+            drift_y=drift_y,
+            rotate_speed=config_float(cfg, "rotate_speed", 0.0),
+            buoyancy_rate=config_float(cfg, "buoyancy_rate", 0.025),
+            max_depth_rate=config_float(cfg, "max_depth_rate", 0.5, lo=0.0),
+            max_depth_rate_speed=config_float(cfg, "max_depth_rate_speed", 2.0, lo=0.0),
+            water_depth=config_float(cfg, "default_water_depth", 0.0, lo=0.0),
+            sim_pause=config_bool(cfg, "sim_pause", False),
+        )
+
+
+def parse_drift_vector(text: str, what: str) -> tuple[float, float]:
+    """`ang,mag` (direction the water flows to, degrees; metres/second) -> (drift_x, drift_y)."""
+    parts = str(text).split(",")
+    if len(parts) != 2:
+        raise ValueError(f"{what}: expected 'angle,magnitude', got {text!r}")
+    ang = parse_float(parts[0], f"{what} angle")
+    mag = parse_float(parts[1], f"{what} magnitude")
+    rad = math.radians(ang)
+    return mag * math.sin(rad), mag * math.cos(rad)
+
+
+def angle360(deg: float) -> float:
+    return deg % 360.0
+
+
+@dataclass
+class StepResult:
+    speed_over_ground: float
+    heading_over_ground: float
+
+
+class MarineModel:
+    """The kinematic state and its update, one call of `step(dt)` per simulator Iterate."""
+
+    def __init__(self, params: SimParams):
+        self.params = params
+        self.state = replace(params.start)
+        self.rudder = 0.0
+        self.thrust = 0.0
+        self.elevator = 0.0
+        self.drift_x = params.drift_x
+        self.drift_y = params.drift_y
+        self.rotate_speed = params.rotate_speed
+        self.buoyancy_rate = params.buoyancy_rate
+        self.turn_rate = params.turn_rate
+        self.paused = params.sim_pause
+        self._last_rudder_time: float | None = None
+
+    def reset(self, state: NavState | None = None) -> None:
+        self.state = replace(state or self.params.start)
+        self.rudder = self.thrust = self.elevator = 0.0
+
+    def set_rudder(self, desired: float, time: float) -> None:
+        """Apply a DESIRED_RUDDER message; each message moves the rudder by a bounded amount."""
+        desired = max(-100.0, min(100.0, desired))
+        rate = self.params.max_rudder_degs_per_sec
+        if rate > 0.0 and self._last_rudder_time is not None:
+            limit = rate * max(0.0, time - self._last_rudder_time)
+        else:
+            limit = 100.0
+        change = max(-limit, min(limit, desired - self.rudder))
+        self.rudder += change
+        self._last_rudder_time = time
+
+    def set_thrust(self, desired: float) -> None:
+        self.thrust = max(-100.0, min(100.0, desired))
+
+    def set_elevator(self, desired: float) -> None:
+        self.elevator = max(-100.0, min(100.0, desired))
+
+    def set_drift_vector(self, ang: float, mag: float) -> None:
+        rad = math.radians(ang)
+        self.drift_x, self.drift_y = mag * math.sin(rad), mag * math.cos(rad)
+
+    @property
+    def drift_angle(self) -> float:
+        return angle360(math.degrees(math.atan2(self.drift_x, self.drift_y)))
+
+    @property
+    def drift_magnitude(self) -> float:
+        return math.hypot(self.drift_x, self.drift_y)
+
+    def step(self, dt: float) -> StepResult:
+        """Propagate by dt seconds of MOOS time (speed, heading, depth, then position)."""
+        st, p = self.state, self.params
+        if self.paused or dt <= 0.0:
+            return StepResult(0.0, st.heading)
+        v0, psi0 = st.speed, st.heading
+        rudder = max(-100.0, min(100.0, self.rudder))
+
+        # 1. speed
+        v1 = p.thrust_map.speed(self.thrust)
+        v1 *= 1.0 - (abs(rudder) / 100.0) * p.turn_spd_loss
+        if v1 > v0 and p.max_acceleration > 0.0:
+            v1 = min(v1, v0 + p.max_acceleration * dt)
+        elif v1 < v0 and p.max_deceleration > 0.0:
+            v1 = max(v1, v0 - p.max_deceleration * dt)
+
+        # 2. heading: the turn rate grows with speed and scales with thrust/50
+        if v1 > 0.0:
+            rate = min(100.0, max(0.0, self.turn_rate * min(v1 / TURN_RATE_FULL_SPEED, 1.0)))
+            turn = rudder * (rate / 100.0) * dt * (1.0 + (self.thrust - 50.0) / 50.0)
+        else:
+            turn = 0.0
+        psi1 = angle360(psi0 + turn + self.rotate_speed * dt)
+
+        # 3. depth: the elevator dives in proportion to speed; buoyancy lifts; never above 0
+        speed_ratio = min(abs(v1) / p.max_depth_rate_speed, 1.0) if p.max_depth_rate_speed > 0 else 1.0
+        dive_rate = (self.elevator / 100.0) * p.max_depth_rate * speed_ratio
+        st.depth = max(0.0, st.depth + (dive_rate - self.buoyancy_rate) * dt)
+
+        # 4. position with the mean heading and mean speed of the step
+        r0, r1 = math.radians(psi0), math.radians(psi1)
+        mean_heading = math.atan2(math.sin(r0) + math.sin(r1), math.cos(r0) + math.cos(r1))
+        mean_speed = (v0 + v1) / 2.0
+        vx = math.sin(mean_heading) * mean_speed + self.drift_x
+        vy = math.cos(mean_heading) * mean_speed + self.drift_y
+        st.x += vx * dt
+        st.y += vy * dt
+        st.heading = psi1
+        st.speed = mean_speed  # the reference keeps the mean, so speed converges geometrically
+        hog = angle360(math.degrees(math.atan2(vx, vy))) if (vx or vy) else psi1
+        return StepResult(math.hypot(vx, vy), hog)
