@@ -1,0 +1,317 @@
+"""pShare: forwards variables between MOOS communities over UDP, one datagram per message.
+
+A datagram is one serialised CMOOSMsg exactly as the MOOS wire protocol lays it
+out (`moosdb_py.codec`), so these datagrams are the ones the C++ pShare sends and
+receives.  The routing table (`ShareTable`), the config and PSHARE_CMD parsers and
+the datagram codec are pure; the `Share` MOOSApp only adds the UDP sockets.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field, replace
+
+from moosdb_py.codec import CodecError, decode_message, encode_message
+from moosdb_py.message import NOTIFY, MOOSMsg
+
+MAX_DATAGRAM = 48 * 1024  # the C++ pShare's largest payload
+DEFAULT_MULTICAST_ADDRESS = "224.1.1.11"
+DEFAULT_MULTICAST_BASE_PORT = 24460
+MULTICAST_CHANNELS = 256
+KNOWN_OUTPUT_FIELDS = {"src_name", "dest_name", "route", "frequency", "cmd"}
+KNOWN_INPUT_FIELDS = {"route", "cmd"}
+
+
+class ShareConfigError(ValueError):
+    """An output/input line or a PSHARE_CMD that cannot be understood."""
+
+
+class DatagramTooLarge(ValueError):
+    """A value that would not fit in one datagram; it is reported, never cut or dropped silently."""
+
+
+class MalformedDatagram(ValueError):
+    """Bytes that arrived on an input route but are not one MOOS notify message."""
+
+
+# --- datagram codec ---------------------------------------------------------------------------
+
+def encode_datagram(msg: MOOSMsg, dest_name: str, community: str) -> bytes:
+    """The datagram for `msg` renamed to `dest_name`; source, aux, time and id are kept."""
+    wire = encode_message(replace(msg, msg_type=NOTIFY, key=dest_name, community=community, wire=None))
+    if len(wire) > MAX_DATAGRAM:
+        raise DatagramTooLarge(
+            f"{msg.key} -> {dest_name}: {len(wire)} bytes serialised, more than one datagram "
+            f"carries ({MAX_DATAGRAM}); not forwarded")
+    return wire
+
+
+def decode_datagram(data: bytes) -> MOOSMsg:
+    """One datagram -> the notify message it carries; anything else raises MalformedDatagram."""
+    try:
+        msg, end = decode_message(data)
+    except (CodecError, ValueError) as exc:  # struct errors on short input are ValueErrors too
+        raise MalformedDatagram(f"not a MOOS message ({len(data)} bytes): {exc}") from None
+    if end != len(data):
+        raise MalformedDatagram(f"{len(data) - end} stray bytes after the message")
+    if msg.msg_type != NOTIFY:
+        raise MalformedDatagram(f"message type {msg.msg_type!r}, only notifies ('N') are shared")
+    if not msg.key:
+        raise MalformedDatagram("notify without a variable name")
+    return msg
+
+
+# --- routes and config lines ------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Route:
+    """Where datagrams go to (outputs) or are listened for (inputs)."""
+
+    host: str
+    port: int
+    channel: int | None = None  # multicast channel number, None for plain UDP
+
+    @property
+    def multicast(self) -> bool:
+        return self.channel is not None
+
+    def __str__(self) -> str:
+        address = f"{self.host}:{self.port}"
+        return f"{address}:multicast_{self.channel}" if self.multicast else address
+
+
+def parse_route(text: str, multicast_address: str = DEFAULT_MULTICAST_ADDRESS,
+                base_port: int = DEFAULT_MULTICAST_BASE_PORT) -> Route:
+    """`host:port` or `multicast_N` (the multicast group at base port + N)."""
+    text = text.strip()
+    if text.startswith("multicast_"):
+        channel = text[len("multicast_"):]
+        if not channel.isdigit() or int(channel) >= MULTICAST_CHANNELS:
+            raise ShareConfigError(f"route '{text}': multicast channel must be 0..{MULTICAST_CHANNELS - 1}")
+        return Route(multicast_address, base_port + int(channel), int(channel))
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ShareConfigError(f"route '{text}' is not host:port or multicast_N")
+    return Route(host, int(port))
+
+
+def _fields(text: str, known: set[str], warnings: list[str]) -> dict[str, str]:
+    """`a=1,b=2` with every blank removed, as MOOS config lines reach an app."""
+    pairs: dict[str, str] = {}
+    for part in "".join(text.split()).split(","):
+        if not part:
+            continue
+        key, sep, value = part.partition("=")
+        if not sep:
+            raise ShareConfigError(f"'{part}' is not key=value in '{text}'")
+        key = key.lower()
+        if key not in known:
+            warnings.append(f"'{key}' is not a pShare field; ignored in '{text}'")
+        pairs[key] = value
+    return pairs
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    src_name: str
+    dest_name: str
+    routes: tuple[str, ...]
+    frequency: float = 0.0
+
+
+def parse_output(text: str, warnings: list[str]) -> list[OutputSpec]:
+    """`src_name=X,dest_name=Y,route=a:1&b:2[,frequency=Hz]`, or the shorthand `X->Y:host:port@Hz & ...`."""
+    if "route" not in text.lower():
+        return parse_shorthand_output(text)
+    pairs = _fields(text, KNOWN_OUTPUT_FIELDS, warnings)
+    src = pairs.get("src_name", "")
+    if not src:
+        raise ShareConfigError(f"output '{text}': src_name is required")
+    routes = tuple(r for r in pairs.get("route", "").split("&") if r)
+    if not routes:
+        raise ShareConfigError(f"output '{text}': route is required")
+    return [OutputSpec(src, pairs.get("dest_name") or src, routes, _frequency(pairs.get("frequency", "0"), text))]
+
+
+def parse_shorthand_output(text: str) -> list[OutputSpec]:
+    """`X->Y:165.45.3.61:9000@0.5 & Z:multicast_8`: one spec per route (each may rename and limit)."""
+    src, sep, rest = "".join(text.split()).partition("->")
+    if not sep or not src or not rest:
+        raise ShareConfigError(f"output '{text}' is neither src_name=..,route=.. nor X->[Y:]host:port")
+    specs = []
+    for item in rest.split("&"):
+        route_text, _, freq = item.partition("@")
+        parts = route_text.split(":")
+        if parts[-1].startswith("multicast_"):
+            dest, route = (parts[0], parts[1]) if len(parts) == 2 else (src, parts[0])
+            if len(parts) > 2:
+                raise ShareConfigError(f"output '{text}': too many parts in '{item}'")
+        elif len(parts) in (2, 3):
+            dest = parts[0] if len(parts) == 3 else src
+            route = ":".join(parts[-2:])
+        else:
+            raise ShareConfigError(f"output '{text}': '{item}' is not [dest:]host:port or [dest:]multicast_N")
+        specs.append(OutputSpec(src, dest, (route,), _frequency(freq or "0", text)))
+    return specs
+
+
+def _frequency(text: str, line: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ShareConfigError(f"'{line}': frequency '{text}' is not a number") from None
+    if not value >= 0.0 or value == float("inf"):
+        raise ShareConfigError(f"'{line}': frequency must be >= 0 Hz")
+    return value
+
+
+def parse_input(text: str, warnings: list[str]) -> tuple[str, ...]:
+    """`route=localhost:9201 & multicast_9` -> the routes."""
+    routes = tuple(r for r in _fields(text, KNOWN_INPUT_FIELDS, warnings).get("route", "").split("&") if r)
+    if not routes:
+        raise ShareConfigError(f"input '{text}': route is required")
+    return routes
+
+
+def parse_command(text: str, warnings: list[str]) -> tuple[list[OutputSpec], tuple[str, ...]]:
+    """A PSHARE_CMD: `cmd=output,...` gives output specs, `cmd=input,route=..` input routes."""
+    cmd = _fields(text, KNOWN_OUTPUT_FIELDS, []).get("cmd", "").lower()
+    if cmd == "output":
+        return parse_output(text, warnings), ()
+    if cmd == "input":
+        return [], parse_input(text, warnings)
+    raise ShareConfigError(f"'{text}': cmd must be output or input")
+
+
+# --- the routing table ------------------------------------------------------------------------
+
+def wildcard_match(pattern: str, text: str) -> bool:
+    """MOOSWildCmp: `*` any run, `?` one character, case-sensitive, whole string."""
+    regex = "".join(".*" if c == "*" else "." if c == "?" else re.escape(c) for c in pattern)
+    return re.fullmatch(regex, text, re.DOTALL) is not None
+
+
+def is_wildcard(src_name: str) -> bool:
+    return any(c in src_name for c in "*?:")
+
+
+@dataclass
+class Output:
+    """One share: variable `src` goes to `route` as `dest`."""
+
+    src: str
+    dest: str
+    route: Route
+    frequency: float = 0.0
+    last_sent: float | None = field(default=None, compare=False)
+
+    def due(self, now: float) -> bool:
+        return self.frequency <= 0.0 or self.last_sent is None or now - self.last_sent >= 1.0 / self.frequency
+
+
+@dataclass
+class WildcardOutput:
+    """`src_name=VAR_PATTERN[:APP_PATTERN]`; each matching variable becomes a plain Output on first sight."""
+
+    var_pattern: str
+    app_pattern: str
+    dest: str  # prefix; "" = keep the name; "^" = keep only what '*' matched
+    route: Route
+    frequency: float = 0.0
+
+    def dest_for(self, key: str) -> str:
+        if self.dest == "^" and self.var_pattern.count("*") == 1:
+            if self.var_pattern.startswith("*"):
+                return key[: len(key) - len(self.var_pattern) + 1]
+            if self.var_pattern.endswith("*"):
+                return key[len(self.var_pattern) - 1:]
+        return self.dest + key
+
+
+@dataclass
+class Subscription:
+    """What pShare must register for after a change to its table."""
+
+    var: str
+    app_pattern: str | None = None  # None: plain register; else a wildcard register
+
+
+class ShareTable:
+    """The outputs and inputs of one pShare, and the forwarding decisions, free of I/O."""
+
+    def __init__(self, multicast_address: str = DEFAULT_MULTICAST_ADDRESS,
+                 base_port: int = DEFAULT_MULTICAST_BASE_PORT):
+        self.multicast_address = multicast_address
+        self.base_port = base_port
+        self.outputs: dict[str, list[Output]] = {}
+        self.wildcards: list[WildcardOutput] = []
+        self.inputs: list[Route] = []
+
+    def route(self, text: str) -> Route:
+        return parse_route(text, self.multicast_address, self.base_port)
+
+    def add_output(self, spec: OutputSpec) -> list[Subscription]:
+        """Add a share (an exact repeat changes nothing); returns the new subscriptions it needs."""
+        routes = [self.route(r) for r in spec.routes]
+        subs: list[Subscription] = []
+        if is_wildcard(spec.src_name):
+            var_pattern, _, app_pattern = spec.src_name.partition(":")
+            dest = "" if any(c in spec.dest_name for c in "*?") else spec.dest_name
+            for route in routes:
+                share = WildcardOutput(var_pattern, app_pattern or "*", dest, route, spec.frequency)
+                if share not in self.wildcards:
+                    self.wildcards.append(share)
+                    subs.append(Subscription(share.var_pattern, share.app_pattern))
+            return subs
+        existing = self.outputs.setdefault(spec.src_name, [])
+        for route in routes:
+            share = Output(spec.src_name, spec.dest_name, route, spec.frequency)
+            if share not in existing:
+                existing.append(share)
+                subs.append(Subscription(spec.src_name))
+        return subs
+
+    def add_input(self, route_text: str) -> Route | None:
+        """A new input route to listen on, or None if already listening there."""
+        route = self.route(route_text)
+        if route in self.inputs:
+            return None
+        self.inputs.append(route)
+        return route
+
+    def remove_input(self, route: Route) -> None:
+        self.inputs.remove(route)
+
+    def subscriptions(self) -> list[Subscription]:
+        """Everything to register for, e.g. again after a reconnect."""
+        plain = [Subscription(src) for src in self.outputs]
+        return plain + [Subscription(w.var_pattern, w.app_pattern) for w in self.wildcards]
+
+    def is_shared(self, key: str) -> bool:
+        """True for a variable this pShare forwards: such a datagram is not posted (stops echo loops)."""
+        return key in self.outputs or any(wildcard_match(w.var_pattern, key) for w in self.wildcards)
+
+    def forward(self, msg: MOOSMsg, now: float) -> list[Output]:
+        """The shares a new value of `msg.key` goes out on now (frequency limits applied)."""
+        shares = self.outputs.get(msg.key)
+        if shares is None:
+            matching = [w for w in self.wildcards
+                        if wildcard_match(w.var_pattern, msg.key) and wildcard_match(w.app_pattern, msg.source)]
+            if not matching:
+                return []
+            shares = self.outputs[msg.key] = [Output(msg.key, w.dest_for(msg.key), w.route, w.frequency)
+                                              for w in matching]
+        due = [s for s in shares if s.due(now)]
+        for share in due:
+            share.last_sent = now
+        return due
+
+    def output_summary(self) -> str:
+        """PSHARE_OUTPUT_SUMMARY: `src->dest:host:port & dest2:host:port, src2->...`, sorted by src."""
+        return ", ".join(
+            f"{src}->" + " & ".join(f"{s.dest}:{s.route}" for s in shares)
+            for src, shares in sorted(self.outputs.items()) if shares
+        )
+
+    def input_summary(self) -> str:
+        """PSHARE_INPUT_SUMMARY: `host:port,host:port`."""
+        return ",".join(str(r) for r in self.inputs)

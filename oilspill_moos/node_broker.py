@@ -1,0 +1,243 @@
+"""uFldNodeBroker: the vehicle half of the uField handshake.
+
+The vehicle pings every shore it was told about (through its pShare), and when
+a shore acknowledges, it asks its pShare to bridge the configured variables to
+that shore.  The logic lives in `NodeBrokerState`, which takes mail and the
+clock and returns what to post; the `NodeBroker` MOOSApp only moves mail in and
+posts out, so the handshake can be tested without sockets.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+from oilspill_moos.app_config import parse_pairs
+
+PING_VAR = "NODE_BROKER_PING"
+ACK_VAR = "NODE_BROKER_ACK"
+PING_PERIOD = 20.0  # seconds between pings while a shore answers
+PING_PERIOD_UNANSWERED = 5.0  # ... and while none has answered for this long
+NODE_AUTO_BRIDGES = {
+    "auto_bridge_appcast": ("APPCAST",),
+    "auto_bridge_realmcast": ("REALMCAST", "WATCHCAST", "REALMCAST_CHANNELS"),
+    "auto_bridge_pshare_vars": ("NODE_PSHARE_VARS",),
+}
+
+Post = tuple[str, str]
+
+
+def strip_blanks(text: str) -> str:
+    """MOOS deletes every blank inside a config line before an app reads it; do the same."""
+    return "".join(text.split())
+
+
+def pairs_at(text: str, where: str) -> dict[str, str]:
+    """`a=1,b=2` -> {'a': '1', 'b': '2'}; an error names the place."""
+    try:
+        return parse_pairs(text)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def format_warp(warp: float) -> str:
+    """Time warp as pHostInfo writes it: `10`, not `10.0`."""
+    return f"{warp:g}"
+
+
+@dataclass
+class HostRecord:
+    """A host record (PHI_HOST_INFO, pings and acks); field order is the wire order."""
+
+    community: str = ""
+    hostip: str = ""
+    port_db: str = ""
+    port_udp: str = ""
+    pshare_iroutes: str = ""
+    keyword: str = ""
+    hostip_alts: str = ""
+    timewarp: str = ""
+    status: str = ""
+    time: str = ""
+    key: str = ""
+
+    def spec(self) -> str:
+        return ",".join(f"{f.name}={getattr(self, f.name)}" for f in fields(self) if getattr(self, f.name))
+
+    @classmethod
+    def parse(cls, text: str) -> "HostRecord":
+        """Any field order; `vname` is an alias of `community`, which is the only required field."""
+        names = {f.name for f in fields(cls)}
+        values: dict[str, str] = {}
+        for key, value in pairs_at(text, "host record").items():
+            if key == "vname":
+                key = "community"
+            if key in names:
+                values[key] = value
+        if not values.get("community"):
+            raise ValueError(f"host record without community: '{text}'")
+        return cls(**values)
+
+    def iroutes(self) -> list[str]:
+        return [r for r in self.pshare_iroutes.split("&") if r]
+
+
+def own_host_record(community: str, hostip: str, port_db: int, input_summary: str, time_warp: float) -> HostRecord:
+    """The record pHostInfo would post, built from the mission and pShare's PSHARE_INPUT_SUMMARY.
+
+    Used when no pHostInfo runs in the community; a PHI_HOST_INFO that arrives wins.
+    """
+    routes = [r.strip() for r in input_summary.split(",") if r.strip()]
+    return HostRecord(
+        community=community,
+        hostip=hostip,
+        port_db=str(port_db),
+        pshare_iroutes="&".join(routes),
+        timewarp=format_warp(time_warp),
+    )
+
+
+def parse_bridge(text: str, where: str) -> tuple[str, str]:
+    """`src=VAR[,alias=VAR2]` -> (src, alias); the alias defaults to src."""
+    pairs = pairs_at(strip_blanks(text), where)
+    src = pairs.get("src", "")
+    if not src:
+        raise ValueError(f"{where}: bridge '{text}' has no src=")
+    unknown = set(pairs) - {"src", "alias"}
+    if unknown:
+        raise ValueError(f"{where}: bridge '{text}' has unknown field(s) {', '.join(sorted(unknown))}")
+    return src, pairs.get("alias") or src
+
+
+def parse_shore_route(text: str, where: str) -> str:
+    """`pshare_route=ip:port` -> `ip:port`."""
+    pairs = pairs_at(strip_blanks(text), where)
+    route = pairs.get("pshare_route", "")
+    host, sep, port = route.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ValueError(f"{where}: '{text}' is not pshare_route=<ip>:<port>")
+    return route
+
+
+def pshare_output_cmd(src: str, dest: str, route: str) -> str:
+    return f"cmd=output,src_name={src},dest_name={dest},route={route}"
+
+
+@dataclass
+class ShoreContact:
+    """What a node knows about a shore that acknowledged it."""
+
+    route: str
+    community: str = ""
+    hostip: str = ""
+    timewarp: str = ""
+    last_ack: float | None = None
+    bridged: bool = False
+
+
+@dataclass
+class BrokerState:
+    """What both brokers keep about their own community's host record."""
+
+    community: str
+    host_record: HostRecord | None = None
+    host_record_from_phi: bool = False
+    warnings: list[str] = field(default_factory=list)
+
+    def on_host_info(self, text: str, community: str) -> None:
+        """PHI_HOST_INFO from our own pHostInfo (one from elsewhere is not ours)."""
+        if community and community != self.community:
+            return
+        record = HostRecord.parse(text)
+        self.host_record = replace(record, status="", time="", key="")
+        self.host_record_from_phi = True
+
+    def on_input_summary(self, summary: str, hostip: str, port_db: int, time_warp: float) -> None:
+        """PSHARE_INPUT_SUMMARY: our iroutes, unless a pHostInfo already told us."""
+        if not self.host_record_from_phi and summary.strip():
+            self.host_record = own_host_record(self.community, hostip, port_db, summary, time_warp)
+
+
+@dataclass
+class NodeBrokerState(BrokerState):
+    """The vehicle side of the handshake, free of I/O: mail in, posts out."""
+
+    bridges: list[tuple[str, str]] = field(default_factory=list)
+    shores: list[ShoreContact] = field(default_factory=list)
+    last_ping: float | None = None
+    last_ack: float | None = None
+
+    def add_shore(self, route: str) -> bool:
+        if any(s.route == route for s in self.shores):
+            self.warnings.append(f"shore route {route} given twice; ignored")
+            return False
+        self.shores.append(ShoreContact(route))
+        return True
+
+    @property
+    def acknowledged(self) -> bool:
+        return any(s.last_ack is not None for s in self.shores)
+
+    def on_ack(self, text: str, community: str, now: float) -> list[Post]:
+        """NODE_BROKER_ACK from a shore: remember it and, the first time, set up the bridges."""
+        if community == self.community:
+            return []
+        record = HostRecord.parse(text)
+        key = record.key
+        if key.isdigit() and int(key) < len(self.shores):
+            shore = self.shores[int(key)]
+        else:
+            self.warnings.append(f"ack from {record.community} with bad key '{key}'")
+            shore = self._shore_for(record)
+            if shore is None:
+                return []
+        shore.community, shore.hostip, shore.timewarp = record.community, record.hostip, record.timewarp
+        shore.last_ack = now
+        self.last_ack = now
+        posts: list[Post] = [("NODE_PSHARE_VARS", ",".join(alias for _, alias in self.bridges))]
+        if not shore.bridged:
+            shore.bridged = True
+            posts += [("PSHARE_CMD", pshare_output_cmd(src, alias, shore.route)) for src, alias in self.bridges]
+        return posts
+
+    def _shore_for(self, record: HostRecord) -> ShoreContact | None:
+        """An ack without a usable key: match the shore by its iroutes, or take the only one."""
+        for shore in self.shores:
+            if shore.route in record.iroutes():
+                return shore
+        return self.shores[0] if len(self.shores) == 1 else None
+
+    def iterate(self, now: float) -> list[Post]:
+        posts: list[Post] = []
+        if not self.acknowledged:
+            posts += [
+                ("PSHARE_CMD", pshare_output_cmd(f"{PING_VAR}_{i}", PING_VAR, shore.route))
+                for i, shore in enumerate(self.shores)
+            ]
+        if self.host_record is None or not self.host_record.pshare_iroutes:
+            return posts
+        answered = self.last_ack is not None and now - self.last_ack <= PING_PERIOD_UNANSWERED
+        period = PING_PERIOD if answered else PING_PERIOD_UNANSWERED
+        if self.last_ping is None or now - self.last_ping >= period:
+            self.last_ping = now
+            for i, _ in enumerate(self.shores):
+                ping = replace(self.host_record, time=f"{now:.2f}", key=str(i))
+                posts.append((f"{PING_VAR}_{i}", ping.spec()))
+        return posts
+
+
+def node_bridges(bridge_lines: list[str], auto: dict[str, bool]) -> list[tuple[str, str]]:
+    """The configured bridges plus the automatic ones, without repeats, in that order.
+
+    `auto` maps each auto_bridge_* switch to its value.
+    """
+    bridges: list[tuple[str, str]] = []
+    for i, line in enumerate(bridge_lines):
+        bridge = parse_bridge(line, f"bridge #{i + 1}")
+        if bridge not in bridges:
+            bridges.append(bridge)
+    for switch, variables in NODE_AUTO_BRIDGES.items():
+        if auto.get(switch, True):
+            bridges += [(v, v) for v in variables if (v, v) not in bridges]
+    sources = {src for src, _ in bridges}
+    if {"NODE_MESSAGE_LOCAL", "MEDIATED_MESSAGE_LOCAL"} <= sources:
+        raise ValueError("bridge: NODE_MESSAGE_LOCAL (unmediated) and MEDIATED_MESSAGE_LOCAL (mediated) exclude each other")
+    return bridges
