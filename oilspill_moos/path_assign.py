@@ -1,0 +1,393 @@
+"""pPathAssign: the shoreside coordinator between the spill forecaster and the fleet.
+
+Three layers, so that everything except the sockets can be tested without a
+MOOSDB: `parse_boundary_line` (one TCP line -> Boundary), `Coordinator` (the
+phase machine; mail in, posts out, MOOS time passed in), and the `PathAssign`
+MOOSApp shell that owns the TCP server and the MOOS client.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from shapely.geometry import Point, Polygon
+
+from oilspill_moos.planner import (
+    Plan,
+    PlanError,
+    choose_forecast,
+    containment_region,
+    plan_containment,
+    reshare,
+)
+
+IDLE = "IDLE"
+STATION_KEEPING = "STATION-KEEPING"
+STARTING_POSITION = "STARTING-POSITION"
+OIL_PATH = "OIL-PATH"
+
+
+class BoundaryError(ValueError):
+    """A boundary line pPathAssign refuses; str() goes back to the sender after `ERR `."""
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """A predicted spill outline in local metres, with the forecast it came from."""
+
+    polygon: tuple[tuple[float, float], ...]
+    time: float | None = None
+    horizon_h: float = 0.0
+    uncertainty_m: float = 0.0
+    source: str = "tcp"
+
+
+_PTS = re.compile(r"^\s*pts\s*=\s*\{(?P<body>[^}]*)\}\s*(?:,.*)?$", re.IGNORECASE)
+
+
+def parse_polygon_spec(text: str) -> list[tuple[float, float]]:
+    """`pts={x1,y1:x2,y2:...}[,label=..]` -> vertices (a third number per vertex, z, is ignored)."""
+    match = _PTS.match(text)
+    if not match:
+        raise BoundaryError("expected a JSON object or pts={x1,y1:x2,y2:...}")
+    vertices = []
+    for index, item in enumerate(match["body"].split(":")):
+        fields = [f.strip() for f in item.split(",")]
+        try:
+            x, y = float(fields[0]), float(fields[1])
+        except (ValueError, IndexError):
+            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} is not x,y") from None
+        if len(fields) > 3:
+            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} has more than x,y,z")
+        vertices.append((x, y))
+    return vertices
+
+
+def parse_boundary_line(line: str, grid=None) -> Boundary:
+    """One forecaster line -> Boundary in local metres.
+
+    JSON polygons in EPSG:4326 are [lon, lat] pairs (x before y, as pyproj's
+    always_xy) and need `grid` (the mission's LatOrigin/LongOrigin).
+    """
+    text = line.strip()
+    if not text:
+        raise BoundaryError("empty line")
+    if not text.startswith("{"):
+        return Boundary(polygon=tuple(parse_polygon_spec(text)), source="pts")
+    try:
+        message = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BoundaryError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
+    if not isinstance(message, dict):
+        raise BoundaryError("JSON line must be an object")
+    if message.get("type", "boundary") != "boundary":
+        raise BoundaryError(f"unknown message type {message.get('type')!r}")
+    vertices = message.get("polygon")
+    if not isinstance(vertices, list) or not all(isinstance(v, list) and len(v) == 2 for v in vertices):
+        raise BoundaryError("'polygon' must be a list of [x, y] pairs")
+    try:
+        xy = np.asarray(vertices, dtype=float).reshape(-1, 2)
+        number = {key: float(message.get(key, default)) for key, default in
+                  (("horizon_h", 0.0), ("uncertainty_m", 0.0))}
+        stamp = None if message.get("time") is None else float(message["time"])
+    except (TypeError, ValueError):
+        raise BoundaryError("'polygon', 'time', 'horizon_h' and 'uncertainty_m' must be numbers") from None
+    if not np.all(np.isfinite(xy)) or not all(map(math.isfinite, number.values())):
+        raise BoundaryError("non-finite number in boundary")
+    crs = message.get("crs", "local")
+    if crs == "EPSG:4326":
+        if grid is None:
+            raise BoundaryError("EPSG:4326 boundary but the mission has no LatOrigin/LongOrigin")
+        if np.any(np.abs(xy[:, 1]) > 90) or np.any(np.abs(xy[:, 0]) > 180):
+            raise BoundaryError("EPSG:4326 polygon must be [lon, lat] pairs in degrees")
+        x, y = grid.to_local(xy[:, 1], xy[:, 0])
+        xy = np.column_stack([x, y])
+    elif crs != "local":
+        raise BoundaryError(f"crs must be 'EPSG:4326' or 'local', not {crs!r}")
+    return Boundary(polygon=tuple(map(tuple, xy.tolist())), time=stamp, source=str(message.get("source", "json")),
+                    **number)
+
+
+def format_points(points: Iterable[Iterable[float]]) -> str:
+    """Vertices as the `x,y:x,y` list BHV_Waypoint reads (decimetre precision)."""
+    return ":".join(f"{x:.1f},{y:.1f}" for x, y in points)
+
+
+def parse_report(text: str) -> dict[str, str]:
+    """`KEY=val,KEY=val` (NODE_REPORT, VEHICLE_COORDINATES) -> dict with lower-case keys."""
+    fields = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        if sep:
+            fields[key.strip().lower()] = value.strip()
+    return fields
+
+
+@dataclass
+class Vehicle:
+    """What the coordinator knows of one vehicle from its reports."""
+
+    name: str
+    x: float | None = None
+    y: float | None = None
+    last_seen: float = -math.inf
+    dropped: bool = False
+
+
+@dataclass
+class Settings:
+    """pPathAssign's parameters (see `PathAssign.example_config` for their meaning)."""
+
+    standoff: float = 50.0
+    coordinate_timeout: float = 30.0
+    node_timeout: float = 20.0
+    capture_radius: float = 10.0
+    transit_speed: float = 2.0
+    loop_speed: float = 0.0
+    min_replan_interval: float = 10.0
+    heartbeat_interval: float = 5.0
+    status_interval: float = 2.0
+    fleet: tuple[str, ...] = ()
+    operating_area: Polygon | None = None
+
+
+@dataclass
+class Coordinator:
+    """The phase machine: STATION-KEEPING -> STARTING-POSITION -> OIL-PATH, restarted by each boundary.
+
+    Sans-I/O: the shell feeds it mail and MOOS time, and drains `outbox`
+    (MOOS variable, value) pairs; per-vehicle variables carry the vehicle's
+    upper-case name as suffix so uFldShoreBroker's qbridge routes them.
+    """
+
+    settings: Settings = field(default_factory=Settings)
+    phase: str = IDLE
+    seq: int = 0
+    vehicles: dict[str, Vehicle] = field(default_factory=dict)
+    forecasts: dict[float, Boundary] = field(default_factory=dict)
+    forecast_time: float | None = None
+    boundary_received: float | None = None
+    plan: Plan | None = None
+    reported: dict[str, tuple[float, float]] = field(default_factory=dict)
+    arrived: set[str] = field(default_factory=set)
+    phase_started: float = 0.0
+    coordinate_deadline: float = math.inf
+    outbox: list[tuple[str, str | float]] = field(default_factory=list)
+    _last_heartbeat: float = -math.inf
+    _last_status: float = -math.inf
+    _last_cycle: float = -math.inf
+
+    def __post_init__(self):
+        for name in self.settings.fleet:
+            self.vehicles.setdefault(name, Vehicle(name))
+
+    # ---- input ---------------------------------------------------------------------------
+
+    def offer_boundary(self, boundary: Boundary, now: float) -> int:
+        """Accept a boundary (start a new cycle) or raise BoundaryError; the boundary in force stays on error."""
+        region = self._checked_region(boundary)
+        same_forecast = boundary.time is not None and boundary.time == self.forecast_time
+        if not same_forecast:
+            if self.forecast_time is not None and boundary.time is not None and boundary.time < self.forecast_time:
+                raise BoundaryError(f"forecast time {boundary.time} is older than the one in force "
+                                    f"({self.forecast_time})")
+            wait = self._last_cycle + self.settings.min_replan_interval - now
+            if wait > 0:
+                raise BoundaryError(f"boundary flood: the last one is {now - self._last_cycle:.1f} s old, "
+                                    f"next accepted in {wait:.1f} s")
+            self.forecasts = {}
+        self.forecast_time = boundary.time
+        self.forecasts[boundary.horizon_h] = boundary
+        self.seq += 1
+        self._last_cycle = now
+        self.boundary_received = now
+        self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(boundary.polygon)}}},label=oilspill_{self.seq}")
+        self._post("VIEW_POLYGON", f"pts={{{format_points(region.exterior.coords[:-1])}}},"
+                                   f"label=standoff,edge_color=orange")
+        self._begin_station_keeping(now)
+        return self.seq
+
+    def on_coordinates(self, text: str, now: float, community: str = "") -> None:
+        """VEHICLE_COORDINATES="vname=abe,x=..,y=..,utc=..": counts once the current cycle has begun."""
+        name, x, y = self._position_of(text, community)
+        self._seen(name, x, y, now)
+        if self.phase == STATION_KEEPING and not self.vehicles[name].dropped:
+            self.reported[name] = (x, y)
+            self._maybe_plan(now)
+
+    def on_node_report(self, text: str, now: float, community: str = "") -> None:
+        """NODE_REPORT keeps positions fresh, spots drop-outs coming back, and backs up arrival flags."""
+        name, x, y = self._position_of(text, community)
+        self._seen(name, x, y, now)
+        if self.phase == STARTING_POSITION and self.plan and name in self.plan.starts:
+            sx, sy = self.plan.starts[name]
+            if math.hypot(x - sx, y - sy) <= self.settings.capture_radius:
+                self.on_reached(name, now)
+
+    def on_reached(self, name: str, now: float) -> None:
+        """REACHED_STARTING_POSITION from `name`; the last arrival starts the containment loops."""
+        if self.phase != STARTING_POSITION or not self.plan or name not in self.plan.starts:
+            return
+        self.arrived.add(name)
+        if set(self.plan.starts) <= self.arrived:
+            self._begin_oil_path(now)
+
+    def tick(self, now: float) -> None:
+        """Time-outs: vehicles that went silent, the coordinate wait, heartbeat and status."""
+        for vehicle in self.vehicles.values():
+            if not vehicle.dropped and now - vehicle.last_seen > self.settings.node_timeout \
+                    and vehicle.last_seen > -math.inf:
+                self._drop(vehicle, now)
+        if self.phase == STATION_KEEPING:
+            self._maybe_plan(now)
+        if now - self._last_heartbeat >= self.settings.heartbeat_interval:
+            self._last_heartbeat = now
+            self._post("SHORE_HEARTBEAT_ALL", "true")
+        if now - self._last_status >= self.settings.status_interval:
+            self._last_status = now
+            self._post("OILSPILL_STATUS", ",".join(f"{k}={v}" for k, v in self.status(now).items()))
+
+    def status(self, now: float) -> dict[str, str | int | float]:
+        active = sorted(v.name for v in self.vehicles.values() if not v.dropped)
+        return {
+            "phase": self.phase,
+            "vehicles": ":".join(active),
+            "reported": len(self.reported),
+            "planned": len(self.plan.starts) if self.plan else 0,
+            "arrived": len(self.arrived),
+            "dropped": sum(v.dropped for v in self.vehicles.values()),
+            "boundaries": self.seq,
+            "boundary_age": -1 if self.boundary_received is None else round(now - self.boundary_received, 1),
+        }
+
+    # ---- phases --------------------------------------------------------------------------
+
+    def _begin_station_keeping(self, now: float) -> None:
+        self._set_phase(STATION_KEEPING, now)
+        self.reported = {}
+        self.arrived = set()
+        self.coordinate_deadline = now + self.settings.coordinate_timeout
+        self._post("STATION_KEEP_ALL", "true")
+        self._post("OILSPILL_PHASE_ALL", STATION_KEEPING)
+        self._post("REPORT_COORDINATES_ALL", str(self.seq))
+
+    def _maybe_plan(self, now: float) -> None:
+        expected = {v.name for v in self.vehicles.values() if not v.dropped}
+        if not self.reported:
+            if now >= self.coordinate_deadline:  # nobody answered: ask again rather than plan for no one
+                self.coordinate_deadline = now + self.settings.coordinate_timeout
+                self._post("REPORT_COORDINATES_ALL", str(self.seq))
+            return
+        if expected <= set(self.reported) or now >= self.coordinate_deadline:
+            self._assign_starts(self._first_plan(now), now)
+
+    def _first_plan(self, now: float) -> Plan:
+        """With several horizons of one forecast on offer, aim at the one matching the fleet's arrival."""
+        if len(self.forecasts) == 1:
+            (boundary,) = self.forecasts.values()
+            return plan_containment(containment_region(boundary.polygon, self.settings.standoff), self.reported)
+        age_h = (now - self.boundary_received) / 3600.0  # the coordinate wait already used up
+        return choose_forecast({h: b.polygon for h, b in self.forecasts.items()}, self.reported,
+                               {name: self.settings.transit_speed for name in self.reported},
+                               self.settings.standoff, age_h).plan
+
+    def _assign_starts(self, plan: Plan, now: float) -> None:
+        self.plan = plan
+        self.arrived = set()
+        self._set_phase(STARTING_POSITION, now)
+        for name, start in plan.starts.items():
+            suffix = name.upper()
+            self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points([start])}")
+            self._post(f"STATION_KEEP_{suffix}", "false")
+            self._post(f"OILSPILL_PHASE_{suffix}", STARTING_POSITION)
+        for name in plan.starts:  # someone may already be sitting on their point
+            vehicle = self.vehicles[name]
+            if vehicle.x is not None and math.hypot(vehicle.x - plan.starts[name][0],
+                                                    vehicle.y - plan.starts[name][1]) <= self.settings.capture_radius:
+                self.arrived.add(name)
+        if set(plan.starts) <= self.arrived:
+            self._begin_oil_path(now)
+
+    def _begin_oil_path(self, now: float) -> None:
+        self._set_phase(OIL_PATH, now)
+        speed = f"#speed={self.settings.loop_speed:g}" if self.settings.loop_speed > 0 else ""
+        for name in self.plan.starts:
+            suffix = name.upper()
+            self._post(f"OIL_PATH_UPDATES_{suffix}",
+                       f"points={format_points(self.plan.loop(name))}#repeat=forever{speed}")
+            self._post(f"STATION_KEEP_{suffix}", "false")
+            self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
+
+    def _reshare(self, now: float) -> None:
+        """Spread the loop over whoever is reporting now; they go to new starts, then loop again."""
+        positions = {v.name: (v.x, v.y) for v in self.vehicles.values() if not v.dropped and v.x is not None}
+        if not positions:
+            self._post("OILSPILL_WARNING", "no vehicle left to re-share the loop with")
+            return
+        self._assign_starts(reshare(self.plan, positions), now)
+
+    def _drop(self, vehicle: Vehicle, now: float) -> None:
+        vehicle.dropped = True
+        self.reported.pop(vehicle.name, None)
+        self._post("OILSPILL_DROPPED", vehicle.name)
+        if self.phase in (STARTING_POSITION, OIL_PATH) and self.plan and vehicle.name in self.plan.starts:
+            self._reshare(now)
+
+    def _seen(self, name: str, x: float, y: float, now: float) -> None:
+        vehicle = self.vehicles.setdefault(name, Vehicle(name))
+        vehicle.x, vehicle.y, vehicle.last_seen = x, y, now
+        if vehicle.dropped:
+            vehicle.dropped = False
+            self._post("OILSPILL_REJOINED", name)
+            self._post(f"COMMS_LOST_{name.upper()}", "false")
+            if self.phase in (STARTING_POSITION, OIL_PATH) and self.plan:
+                self._reshare(now)
+            elif self.phase == STATION_KEEPING:
+                self._post(f"REPORT_COORDINATES_{name.upper()}", str(self.seq))
+
+    # ---- helpers -------------------------------------------------------------------------
+
+    def _checked_region(self, boundary: Boundary) -> Polygon:
+        try:
+            region = containment_region(boundary.polygon, self.settings.standoff)
+        except PlanError as exc:
+            raise BoundaryError(str(exc)) from None
+        area = self.settings.operating_area
+        if area is not None and not region.intersects(area):
+            centre = region.centroid
+            raise BoundaryError(f"polygon (centre {centre.x:.0f},{centre.y:.0f}) lies outside the operating area")
+        return region
+
+    def _position_of(self, text: str, community: str) -> tuple[str, float, float]:
+        fields = parse_report(text)
+        name = fields.get("vname") or fields.get("name") or community
+        if not name:
+            raise ValueError(f"report without a vehicle name: {text!r}")
+        try:
+            return name.lower(), float(fields["x"]), float(fields["y"])
+        except (KeyError, ValueError):
+            raise ValueError(f"report from {name} without numeric x,y: {text!r}") from None
+
+    def _set_phase(self, phase: str, now: float) -> None:
+        self.phase = phase
+        self.phase_started = now
+        self._post("OILSPILL_PHASE", phase)
+
+    def _post(self, key: str, value: str | float) -> None:
+        self.outbox.append((key, value))
+
+    def drain(self) -> list[tuple[str, str | float]]:
+        posts, self.outbox = self.outbox, []
+        return posts
+
+
+def operating_area(spec: str | None, radius: float) -> Polygon | None:
+    """`operating_area` (a pts={} polygon) wins over `operating_radius` (a circle about the origin)."""
+    if spec:
+        return Polygon(parse_polygon_spec(spec))
+    return shapely.buffer(Point(0.0, 0.0), radius) if radius > 0 else None

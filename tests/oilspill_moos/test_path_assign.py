@@ -1,0 +1,228 @@
+"""pPathAssign: boundary line parser and the phase machine (no sockets); the app shell is tested at the end."""
+import json
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.path_assign import (
+    OIL_PATH,
+    STARTING_POSITION,
+    STATION_KEEPING,
+    Boundary,
+    BoundaryError,
+    Coordinator,
+    Settings,
+    format_points,
+    operating_area,
+    parse_boundary_line,
+    parse_polygon_spec,
+)
+
+SQUARE = [(0.0, 0.0), (400.0, 0.0), (400.0, 400.0), (0.0, 400.0)]
+
+coordinate = st.floats(-1e5, 1e5, allow_nan=False, allow_infinity=False).map(lambda v: round(v, 1))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(coordinate, coordinate), min_size=1, max_size=30))
+def test_pts_lines_round_trip(vertices):
+    line = f"pts={{{format_points(vertices)}}},label=spill"
+    assert parse_boundary_line(line).polygon == tuple(vertices)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.text(max_size=80))
+def test_garbage_lines_raise_boundary_error_only(text):
+    try:
+        parse_boundary_line(text)
+    except BoundaryError as exc:
+        assert str(exc)
+
+
+def test_json_local_and_lat_long():
+    grid = LocalGrid(28.74, -88.39)
+    local = parse_boundary_line(json.dumps({"type": "boundary", "crs": "local", "polygon": [[0, 0], [10, 0], [0, 10]],
+                                            "horizon_h": 7, "time": 100.0, "source": "ltc-rk4"}))
+    assert local.polygon == ((0, 0), (10, 0), (0, 10)) and local.horizon_h == 7 and local.time == 100.0
+    lon, lat = -88.39, 28.74
+    geo = parse_boundary_line(json.dumps({"crs": "EPSG:4326", "polygon": [[lon, lat], [lon + 0.01, lat],
+                                                                          [lon, lat + 0.01]]}), grid)
+    assert geo.polygon[0] == pytest.approx((0.0, 0.0), abs=1e-6)
+    assert geo.polygon[1][0] == pytest.approx(977, rel=0.01)  # 0.01 deg of longitude at 28.7 N
+    assert geo.polygon[2][1] == pytest.approx(1109, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    "line, reason",
+    [
+        ("", "empty line"),
+        ("hello", "expected a JSON object or pts="),
+        ("pts={1,2:3}", "vertex 2 '3' is not x,y"),
+        ("pts={1,2,3,4:3,4}", "more than x,y,z"),
+        ('{"polygon": [[0,0],[1,0],[0,1]]', "bad JSON"),
+        ('{"type": "hello", "polygon": []}', "unknown message type"),
+        ('{"polygon": [[0,0,0]]}', "list of \\[x, y\\] pairs"),
+        ('{"polygon": [[0,"a"],[1,0],[0,1]]}', "must be numbers"),
+        ('{"polygon": [[0,0],[1,0],[0,1]], "crs": "EPSG:3857"}', "crs must be"),
+        ('{"polygon": [[0,0],[1,0],[0,1]], "crs": "EPSG:4326"}', "no LatOrigin"),
+        ('{"polygon": [[0,0],[1,0],[0,1]], "horizon_h": NaN}', "non-finite"),
+    ],
+)
+def test_bad_lines_name_the_problem(line, reason):
+    with pytest.raises(BoundaryError, match=reason):
+        parse_boundary_line(line)
+
+
+def test_lat_long_out_of_range():
+    with pytest.raises(BoundaryError, match="lon, lat"):
+        parse_boundary_line('{"crs": "EPSG:4326", "polygon": [[28, -88],[28, -95],[29, -88]]}', LocalGrid(28, -88))
+
+
+def posts(coordinator, key):
+    return [value for k, value in coordinator.outbox if k == key]
+
+
+def report(name, x, y):
+    return f"NAME={name},X={x},Y={y},SPD=0,HDG=0"
+
+
+def fleet_coordinator(**overrides):
+    return Coordinator(Settings(fleet=("abe", "ben", "cal"), standoff=20, min_replan_interval=10, **overrides))
+
+
+def run_to_oil_path(c, now=0.0):
+    c.offer_boundary(Boundary(tuple(SQUARE)), now)
+    for i, name in enumerate(("abe", "ben", "cal")):
+        c.on_coordinates(f"vname={name},x={-100 * i},y=-50,utc=1", now + 1)
+    for name in ("abe", "ben", "cal"):
+        c.on_reached(name, now + 50)
+    return c
+
+
+def test_full_cycle_posts_the_paper_variables_in_order():
+    c = fleet_coordinator()
+    seq = c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    assert seq == 1 and c.phase == STATION_KEEPING
+    assert posts(c, "STATION_KEEP_ALL") == ["true"]
+    assert posts(c, "OILSPILL_BOUNDARY")[0].startswith("pts={0.0,0.0:400.0,0.0")
+    c.on_coordinates("vname=abe,x=-10,y=-10,utc=5", 1.0)
+    c.on_coordinates("vname=ben,x=500,y=500,utc=5", 1.0)
+    assert c.phase == STATION_KEEPING  # cal has not reported and the time-out is far
+    c.on_coordinates("vname=cal,x=-10,y=500,utc=5", 2.0)
+    assert c.phase == STARTING_POSITION
+    starts = {name: posts(c, f"STARTING_POSITION_UPDATES_{name.upper()}") for name in ("abe", "ben", "cal")}
+    assert all(len(v) == 1 and v[0].startswith("points=") for v in starts.values())
+    assert posts(c, "OILSPILL_PHASE_ABE") == [STARTING_POSITION]
+    c.on_reached("abe", 10.0)
+    c.on_reached("ben", 10.0)
+    assert c.phase == STARTING_POSITION
+    c.on_reached("cal", 12.0)
+    assert c.phase == OIL_PATH
+    loop = posts(c, "OIL_PATH_UPDATES_BEN")[0]
+    assert loop.startswith("points=") and loop.endswith("#repeat=forever")
+    assert posts(c, "OILSPILL_PHASE") == [STATION_KEEPING, STARTING_POSITION, OIL_PATH]
+
+
+def test_coordinate_timeout_plans_with_those_that_reported():
+    c = fleet_coordinator(coordinate_timeout=30, node_timeout=60)
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    c.on_coordinates("vname=abe,x=-300,y=-300", 1.0)
+    c.tick(29.0)
+    assert c.phase == STATION_KEEPING
+    c.tick(31.0)
+    assert c.phase == STARTING_POSITION and set(c.plan.starts) == {"abe"}
+
+
+def test_nobody_reporting_asks_again_instead_of_planning():
+    c = fleet_coordinator(coordinate_timeout=30)
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    c.tick(31.0)
+    assert c.phase == STATION_KEEPING
+    assert posts(c, "REPORT_COORDINATES_ALL") == ["1", "1"]
+
+
+def test_bad_boundaries_leave_the_one_in_force_untouched():
+    c = run_to_oil_path(fleet_coordinator(operating_area=operating_area(None, 5000)))
+    plan, phase, seq = c.plan, c.phase, c.seq
+    with pytest.raises(BoundaryError, match="at least 3 distinct points"):
+        c.offer_boundary(Boundary(((0, 0), (1, 1))), 100.0)
+    with pytest.raises(BoundaryError, match="outside the operating area"):
+        c.offer_boundary(Boundary(((9e4, 9e4), (9.1e4, 9e4), (9e4, 9.1e4))), 100.0)
+    c.offer_boundary(Boundary(tuple(SQUARE), time=5.0), 100.0)
+    with pytest.raises(BoundaryError, match="boundary flood"):
+        c.offer_boundary(Boundary(tuple(SQUARE), time=6.0), 101.0)
+    with pytest.raises(BoundaryError, match="older than"):
+        c.offer_boundary(Boundary(tuple(SQUARE), time=4.0), 200.0)
+    assert c.seq == seq + 1 and plan is not None and phase == OIL_PATH
+
+
+def test_horizons_of_one_forecast_are_not_a_flood_and_the_matching_one_is_chosen():
+    c = Coordinator(Settings(fleet=("abe",), standoff=0, transit_speed=1.0))
+    near = tuple((x - 5000, y - 5000) for x, y in SQUARE)  # the 3 h outline, about 1.9 h away
+    far = tuple((x + 20000, y + 20000) for x, y in SQUARE)  # the 7 h outline, about 7.8 h away
+    c.offer_boundary(Boundary(near, time=1000.0, horizon_h=3), 0.0)
+    c.offer_boundary(Boundary(far, time=1000.0, horizon_h=7), 0.5)
+    c.on_coordinates("vname=abe,x=0,y=0", 1.0)
+    assert c.phase == STARTING_POSITION
+    assert c.plan.starts["abe"][0] > 10000  # the 7 h outline: 3 h would be long gone on arrival
+
+
+def test_dropout_in_oil_path_reshares_and_rejoin_reshares_again():
+    c = run_to_oil_path(fleet_coordinator(node_timeout=20))
+    for name, x in (("abe", 0), ("ben", 400), ("cal", 200)):
+        c.on_node_report(report(name, x, -20), 60.0)
+    c.outbox.clear()
+    c.on_node_report(report("abe", 0, -20), 75.0)
+    c.on_node_report(report("ben", 400, -20), 75.0)
+    c.tick(81.0)  # cal silent for 21 s
+    assert posts(c, "OILSPILL_DROPPED") == ["cal"]
+    assert c.phase == STARTING_POSITION and set(c.plan.starts) == {"abe", "ben"}
+    arcs = sorted(c.plan.start_arcs.values())
+    assert arcs[1] - arcs[0] == pytest.approx(c.plan.region.exterior.length / 2)
+    c.on_node_report(report("cal", 200, -20), 90.0)
+    assert posts(c, "OILSPILL_REJOINED") == ["cal"] and posts(c, "COMMS_LOST_CAL") == ["false"]
+    assert set(c.plan.starts) == {"abe", "ben", "cal"}
+
+
+def test_node_report_within_capture_radius_counts_as_arrival():
+    c = fleet_coordinator(capture_radius=5)
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    for name in ("abe", "ben", "cal"):
+        c.on_coordinates(f"vname={name},x=0,y=-500", 1.0)
+    for name, (x, y) in c.plan.starts.items():
+        c.on_node_report(report(name, x + 3, y), 20.0)
+    assert c.phase == OIL_PATH
+
+
+def test_status_line_and_heartbeat():
+    c = run_to_oil_path(fleet_coordinator(status_interval=2, heartbeat_interval=5))
+    for name in ("abe", "ben", "cal"):
+        c.on_node_report(report(name, 0, -20), 59.0)
+    c.outbox.clear()
+    c.tick(60.0)
+    status = posts(c, "OILSPILL_STATUS")[0]
+    assert "phase=OIL-PATH" in status and "vehicles=abe:ben:cal" in status and "boundary_age=60.0" in status
+    assert posts(c, "SHORE_HEARTBEAT_ALL") == ["true"]
+    c.outbox.clear()
+    c.tick(61.0)
+    assert posts(c, "OILSPILL_STATUS") == [] and posts(c, "SHORE_HEARTBEAT_ALL") == []
+
+
+def test_reports_without_name_or_position_are_rejected():
+    c = fleet_coordinator()
+    with pytest.raises(ValueError, match="without a vehicle name"):
+        c.on_coordinates("x=1,y=2", 0.0)
+    with pytest.raises(ValueError, match="from abe without numeric x,y"):
+        c.on_coordinates("vname=abe,x=east", 0.0)
+    c.on_coordinates("x=1,y=2", 0.0, community="ben")
+    assert c.vehicles["ben"].x == 1.0
+
+
+def test_operating_area_from_spec_or_radius():
+    assert operating_area("pts={0,0:10,0:0,10}", 1000).area == pytest.approx(50)
+    assert operating_area(None, 100).area == pytest.approx(math.pi * 100**2, rel=0.01)
+    assert operating_area(None, 0) is None
+    assert parse_polygon_spec("pts={1,2,0:3,4,0}") == [(1.0, 2.0), (3.0, 4.0)]
