@@ -1,0 +1,209 @@
+"""The `.alog` format of pLogger: writing it as MOOS-IvP's alog tools read it, and reading it back.
+
+Format (field-apps.md section 5): a `%%` header with the LOGSTART time, then one line per message,
+`<rel time> <VAR> <source[:aux][@community]> <value> ` with fixed-width, left-justified columns that
+grow when a field is longer, and one trailing blank. So a reader splits the first three
+blank-separated tokens and takes the rest of the line as the value.
+"""
+from __future__ import annotations
+
+import re
+import time as _time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import BinaryIO
+
+from .message import MOOSMsg
+
+RULE = "%" * 59
+DATATYPE_MARKING = "%% DATATYPE MARKING ON"
+
+
+class AlogFormatError(ValueError):
+    """A line of an .alog file that does not follow the format; str() is `file:line: message`."""
+
+    def __init__(self, file: Path | str, line: int, message: str):
+        super().__init__(f"{file}:{line}: {message}")
+
+
+def log_root_name(stem: str, when: datetime, timestamp: bool = True) -> str:
+    """`LOG_ABE` -> `LOG_ABE_21_11_2026_____23_05_09`: day and month unpadded, the clock padded."""
+    if not timestamp:
+        return stem
+    return f"{stem}_{when.day}_{when.month}_{when.year}_____{when.hour:02d}_{when.minute:02d}_{when.second:02d}"
+
+
+def alog_header(shown_path: str, log_start: float, mark_data_type: bool = False) -> str:
+    """The `%%` header block; LOGSTART has 16 significant digits, right-justified in 20 characters."""
+    lines = [RULE, f"%% LOG FILE:       {shown_path}", f"%% FILE OPENED ON  {_time.ctime(log_start)}",
+             f"%% LOGSTART        {log_start:20.16g}"]
+    if mark_data_type:
+        lines.append(DATATYPE_MARKING)
+    lines.append(RULE)
+    return "\n".join(lines) + "\n"
+
+
+def format_double(value: float, precision: int = 5) -> str:
+    return f"{value:<12.{precision}f}"
+
+
+def source_field(msg: MOOSMsg, log_aux_src: bool = False, external_community: bool = False) -> str:
+    """`source`, plus `:aux` with LogAuxSrc and `@community` for a message from another community."""
+    text = msg.source
+    if log_aux_src and msg.source_aux:
+        text += f":{msg.source_aux}"
+    if external_community and msg.community:
+        text += f"@{msg.community}"
+    return text
+
+
+def format_alog_line(rel_time: float, key: str, source: str, value: str) -> str:
+    return f"{rel_time:<15.5f} {key:<20} {source:<15} {value} \n"
+
+
+@dataclass(frozen=True)
+class AlogEntry:
+    """One logged message. `value` is a float when the text reads as a number (or is marked D:)."""
+
+    time: float          # seconds since LOGSTART
+    key: str
+    source: str
+    source_aux: str
+    community: str
+    value: float | str
+    line: int
+
+    @property
+    def is_double(self) -> bool:
+        return isinstance(self.value, float)
+
+
+@dataclass
+class Alog:
+    """A whole .alog file read into memory."""
+
+    path: Path
+    log_start: float
+    entries: list[AlogEntry]
+
+    def values(self, key: str) -> list[float | str]:
+        return [e.value for e in self.entries if e.key == key]
+
+    def keys(self) -> set[str]:
+        return {e.key for e in self.entries}
+
+    def last(self, key: str) -> AlogEntry | None:
+        return next((e for e in reversed(self.entries) if e.key == key), None)
+
+
+_LINE = re.compile(r"\s*(\S+)\s+(\S+)\s+(\S+)\s*(.*)")
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def parse_alog_line(text: str, line: int = 0, path: Path | str = "<alog>", marked: bool = False) -> AlogEntry:
+    """One data line; the value is the rest of the line after the third field, minus its trailing blank."""
+    text = text.rstrip("\r\n")
+    match = _LINE.fullmatch(text)
+    if match is None:
+        raise AlogFormatError(path, line, f"expected TIME VAR SOURCE VALUE, got '{text}'")
+    rel_time = _number(match.group(1))
+    if rel_time is None:
+        raise AlogFormatError(path, line, f"time '{match.group(1)}' is not a number")
+    raw = match.group(4)
+    raw = raw[:-1] if raw.endswith(" ") else raw
+    who, _, community = match.group(3).partition("@")
+    source, _, aux = who.partition(":")
+    value: float | str = raw
+    if marked and raw[:2] in ("D:", "S:"):
+        value = float(raw[2:]) if raw.startswith("D:") else raw[2:]
+    elif not marked:
+        number = _number(raw)
+        value = raw if number is None else number
+    return AlogEntry(rel_time, match.group(2), source, aux, community, value, line)
+
+
+def iter_alog(path: Path | str) -> Iterator[AlogEntry | float]:
+    """Stream an .alog: yields LOGSTART (a float) once it is seen, then every entry."""
+    marked = False
+    with open(path, encoding="latin-1", newline="") as stream:
+        for number, text in enumerate(stream, 1):
+            if text.startswith("%%"):
+                words = text.split()
+                if len(words) >= 3 and words[1] == "LOGSTART":
+                    try:
+                        yield float(words[2])
+                    except ValueError:
+                        raise AlogFormatError(path, number, f"LOGSTART '{words[2]}' is not a number") from None
+                marked = marked or text.startswith(DATATYPE_MARKING)
+            elif text.strip():
+                yield parse_alog_line(text, number, path, marked)
+
+
+def read_alog(path: Path | str) -> Alog:
+    """Read a whole .alog (ours or one written by MOOS-IvP's pLogger)."""
+    log_start, entries = None, []
+    for item in iter_alog(path):
+        if isinstance(item, float):
+            log_start = item
+        else:
+            entries.append(item)
+    if log_start is None:
+        raise AlogFormatError(path, 0, "no %% LOGSTART line in the header")
+    return Alog(Path(path), log_start, entries)
+
+
+class AlogWriter:
+    """Appends messages to one .alog (binary payloads go to the matching .blog, as pLogger does)."""
+
+    def __init__(self, path: Path, log_start: float, *, shown_path: str | None = None, double_precision: int = 5,
+                 log_aux_src: bool = False, mark_externals: bool = False, community: str = "",
+                 mark_data_type: bool = False):
+        self.path = Path(path)
+        self.log_start = log_start
+        self.double_precision = double_precision
+        self.log_aux_src = log_aux_src
+        self.mark_externals = mark_externals
+        self.community = community
+        self.mark_data_type = mark_data_type
+        self._blog_path = self.path.with_suffix(".blog")
+        self._blog: BinaryIO | None = None
+        self._stream = open(self.path, "w", encoding="latin-1", newline="\n")
+        self._stream.write(alog_header(shown_path or str(self.path), log_start, mark_data_type))
+
+    def value_text(self, msg: MOOSMsg) -> str:
+        if msg.is_binary():
+            return self._write_binary(msg.binary)
+        if msg.is_double():
+            text = format_double(msg.double, self.double_precision)
+            return f"D:{text}" if self.mark_data_type else text
+        return f"S:{msg.string}" if self.mark_data_type else msg.string
+
+    def _write_binary(self, payload: bytes) -> str:
+        if self._blog is None:
+            self._blog = open(self._blog_path, "wb")
+        offset = self._blog.tell()
+        self._blog.write(payload)
+        return f"<MOOS_BINARY>File={self._blog_path.name},Offset={offset},Bytes={len(payload)}</MOOS_BINARY>"
+
+    def write(self, msg: MOOSMsg) -> None:
+        external = self.mark_externals and bool(msg.community) and msg.community != self.community
+        source = source_field(msg, self.log_aux_src, external)
+        self._stream.write(format_alog_line(msg.time - self.log_start, msg.key, source, self.value_text(msg)))
+
+    def flush(self) -> None:
+        self._stream.flush()
+        if self._blog is not None:
+            self._blog.flush()
+
+    def close(self) -> None:
+        self._stream.close()
+        if self._blog is not None:
+            self._blog.close()
