@@ -72,3 +72,11 @@ def parse_pairs(text: str) -> dict[str, str]:
             raise ValueError(f"{part.strip()!r} is not a key=value pair")
         pairs[key.strip().lower()] = value.strip()
     return pairs
+
+
+def format_number(value: float, decimals: int = 2) -> str:
+    """Fixed point with at most `decimals` places, trailing zeros (and a bare point) removed, as MOOS writes numbers into report strings."""
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text

@@ -11,18 +11,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from oilspill_moos.app_config import ConfigLike, config_bool, config_float, config_str, parse_float
+from oilspill_moos.app_config import (
+    ConfigLike,
+    config_bool,
+    config_float,
+    config_str,
+    format_number,
+    parse_float,
+)
 from oilspill_moos.geodesy import LocalGrid
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
-
-
-def format_number(value: float, decimals: int = 2) -> str:
-    """Fixed point with at most `decimals` places, trailing zeros (and a bare point) removed."""
-    text = f"{value:.{decimals}f}"
-    if "." in text:
-        text = text.rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
 
 
 def yaw_from_heading(heading: float) -> float:
