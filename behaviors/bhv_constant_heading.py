@@ -1,0 +1,14 @@
+"""BHV_ConstantHeading: hold one heading (a wrapped peak over course only)."""
+from __future__ import annotations
+
+from .bhv_constant_speed import OneVarPeak
+
+
+class BHV_ConstantHeading(OneVarPeak):
+    type_name = "BHV_ConstantHeading"
+    default_name = "const_heading"
+    decision_var = "course"
+    value_param = "heading"
+    value_wrap = True
+    peakwidth = 10.0
+    basewidth = 170.0

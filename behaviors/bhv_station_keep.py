@@ -1,0 +1,161 @@
+"""BHV_StationKeep: hold a station point with inner/outer radii, swing time and hibernation.
+
+Spec: ivp-helm.md §6.
+"""
+from __future__ import annotations
+
+from collections import deque
+
+from .behavior import IvPBehavior, parse_bool, parse_number
+from .geometry import GeometryError, bearing, distance, fmt_num, parse_point
+from .ivp_function import IvPFunction, couple
+from .zaic import PeakComponent, zaic_peak
+
+PROGRESS_WINDOW = 10.0  # seconds of (time, distance) samples judging "progress stopped"
+PROGRESS_SPAN = 5.0
+
+
+class BHV_StationKeep(IvPBehavior):
+    type_name = "BHV_StationKeep"
+    default_name = "station_keep"
+    info_vars = ("NAV_X", "NAV_Y", "NAV_HEADING")
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.static_pt: tuple[float, float] | None = None
+        self.station: tuple[float, float] | None = None
+        self.station_pending = False
+        self.center_activate = False
+        self.center_pending = True
+        self.swing_until = 0.0
+        self.inner, self.outer = 4.0, 15.0
+        self.outer_speed, self.transit_speed = 1.2, 2.5
+        self.swing_time = 0.0
+        self.hibernation_radius = -1.0
+        self.pskeep = "disabled"
+        self.dist = -1.0
+        self.samples: deque[tuple[float, float]] = deque()
+        self.approached = False
+
+    def set_param(self, key: str, value: str) -> bool:
+        low = value.lower()
+        if key in ("station_pt", "point"):
+            try:
+                self.static_pt = parse_point(value)
+            except GeometryError as exc:
+                raise ValueError(str(exc)) from None
+            self.station_pending = True
+        elif key == "center_activate":
+            self.center_activate = parse_bool(value, key)
+        elif key == "inner_radius":
+            self.inner = parse_number(value, key, 0)
+            self.outer = max(self.outer, self.inner)
+        elif key == "outer_radius":
+            self.outer = max(parse_number(value, key, 0), self.inner)
+        elif key == "outer_speed":
+            self.outer_speed = parse_number(value, key, 0)
+            self.transit_speed = max(self.transit_speed, self.outer_speed)
+        elif key in ("transit_speed", "extra_speed"):
+            self.transit_speed = max(parse_number(value, key, 0), self.outer_speed)
+        elif key == "swing_time":
+            self.swing_time = min(max(parse_number(value, key), 0.0), 60.0)
+        elif key == "hibernation_radius":
+            self.hibernation_radius = -1.0 if low in ("off", "-1") else parse_number(value, key, 0)
+        elif key == "visual_hints":
+            pass  # drawing hints for viewers; accepted, the circles use the default colours
+        else:
+            return False
+        return True
+
+    def _set_station(self, pt: tuple[float, float]) -> None:
+        self.station = pt
+        self.pskeep = "hibernating"
+        self.samples.clear()
+        self.approached = False
+
+    def desired_speed(self, d: float) -> float:
+        if self.pskeep == "hibernating" or d <= self.inner:
+            return 0.0
+        if d < self.outer:
+            return self.outer_speed * (d - self.inner) / (self.outer - self.inner)
+        return self.transit_speed
+
+    def _update_pskeep(self, d: float) -> None:
+        if self.pskeep == "hibernating":
+            if d > self.hibernation_radius:
+                self.pskeep = "seeking_station"
+                self.samples.clear()
+                self.approached = False
+            return
+        self.samples.append((self.now, d))
+        while self.samples and self.now - self.samples[0][0] > PROGRESS_WINDOW:
+            self.samples.popleft()
+        t0, d0 = self.samples[0]
+        spanned = self.now - t0 > PROGRESS_SPAN
+        if spanned and d <= self.hibernation_radius and d <= d0:
+            self.approached = True
+        stalled = self.approached and spanned and d >= d0
+        if d <= self.inner or (d <= self.hibernation_radius and stalled):
+            self._set_station(self.station)
+
+    def circles(self, active: bool) -> None:
+        if self.station is None:
+            return
+        x, y = self.station
+        rings = [("out", self.outer)]
+        if self.inner < self.outer:
+            rings.append(("in", self.inner))
+        if self.hibernation_radius > self.outer:
+            rings.append(("hiber", self.hibernation_radius))
+        for tag, radius in rings:
+            text = (f"radial:: x={x:.1f},y={y:.1f},source={self.ownship}:{self.name},pts=32,edge_size=1,"
+                    f"vertex_size=1,edge_color=light_blue,label_color=white,vertex_color=red,"
+                    f"label={self.ownship}:station-keep-{tag},radius={radius:.1f}")
+            self.post("VIEW_POLYGON", text if active else text + ",active=false", key=tag)
+
+    def on_run_to_idle(self) -> None:
+        self.circles(False)
+        if self.center_activate:
+            self.center_pending = True
+
+    def on_run_state(self) -> IvPFunction | None:
+        nav = self.nav()
+        if nav is None:
+            return None
+        osx, osy, heading, _ = nav
+        swinging = False
+        if self.center_activate:
+            recenter = self.center_pending
+            if recenter:
+                self.center_pending = False
+                self.swing_until = self.now + self.swing_time
+            swinging = self.now < self.swing_until
+            if recenter or swinging:
+                self._set_station((osx, osy))
+        elif self.station_pending and self.static_pt is not None:
+            self.station_pending = False
+            self._set_station(self.static_pt)
+        if self.station is None:
+            self.post("DIST_TO_STATION", -1.0)
+            self.post("BHV_WARNING", f"{self.name}: STATION_POINT_NOT_SET")
+            self.circles(False)
+            return None
+        d = float(distance(osx, osy, *self.station))
+        if not swinging:
+            self.dist = d
+            self._update_pskeep(d)
+        self.post("DIST_TO_STATION", round(self.dist, 2))
+        self.post("PSKEEP_MODE", self.pskeep.upper() if self.hibernation_radius > 0 else "DISABLED")
+        self.circles(True)
+        speed = self.desired_speed(self.dist) if self.dist >= 0 else 0.0
+        course = heading if swinging and heading is not None else float(bearing(osx, osy, *self.station))
+        spd = zaic_peak(self.domain.var("speed"), [PeakComponent(speed, 0, 0.4, 0, 0, 25)])
+        crs = zaic_peak(self.domain.var("course"), [PeakComponent(course, 0, 180, 0, 0, 100)], value_wrap=True)
+        return couple(IvPFunction(("course",), crs), IvPFunction(("speed",), spd), 50, 50, self.pwt)
+
+    def on_update_applied(self) -> None:
+        x, y = self.station or self.static_pt or (0.0, 0.0)
+        self.post("BHV_SETTINGS", f"type={self.type_name},name={self.name},x={fmt_num(x)},y={fmt_num(y)},"
+                  f"inner_radius={fmt_num(self.inner)},outer_radius={fmt_num(self.outer)},"
+                  f"hibernation_radius={fmt_num(self.hibernation_radius)},outer_speed={fmt_num(self.outer_speed)},"
+                  f"center_activate={str(self.center_activate).lower()}")

@@ -1,0 +1,408 @@
+"""The helm engine: modes, behaviour life cycles, post deduplication, solving and all-stop.
+
+Pure logic with no MOOS: feed it mail (`on_mail`) and call `iterate(now)`; it returns the posts to
+send as (var, value, source_aux) triples. `helm_app.HelmIvP` is the thin MOOS shell around it.
+Spec: ivp-helm.md §1-3.
+"""
+from __future__ import annotations
+
+import time as _time
+from typing import Union
+
+from moosdb_py.source import MissionFileError
+
+from .behavior import InfoBuffer, IvPBehavior, Post
+from .bhv_constant_heading import BHV_ConstantHeading
+from .bhv_constant_speed import BHV_ConstantSpeed
+from .bhv_file import BehaviorSpec, BhvFile
+from .bhv_station_keep import BHV_StationKeep
+from .bhv_waypoint import BHV_Waypoint
+from .domain import IvPDomain
+from .ivp_function import IvPFunction
+from .logic import as_number
+from .solver import missing_decisions, solve
+
+Value = Union[float, str]
+HelmPost = tuple[str, Value, str]
+BEHAVIOR_TYPES: dict[str, type[IvPBehavior]] = {
+    cls.type_name.lower(): cls
+    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading)
+}
+ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
+                     "MOOS_MANUAL_OVERIDE", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
+                     "IVPHELM_STATE")
+EMPTY_DECISIONS = ("NothingToDo", "NoGoalBehavior")
+
+
+def build_behavior(spec: BehaviorSpec, domain: IvPDomain, info: InfoBuffer, ownship: str) -> IvPBehavior:
+    """Make and configure a behaviour from its block; errors name the .bhv file and line."""
+    cls = BEHAVIOR_TYPES.get(spec.type.lower())
+    if cls is None:
+        known = ", ".join(c.type_name for c in BEHAVIOR_TYPES.values())
+        raise MissionFileError(spec.file, spec.line, f"unknown behavior type '{spec.type}' (this helm has {known})")
+    bhv = cls(domain, info, ownship)
+    for p in spec.params:
+        try:
+            bhv.apply(p.key, p.value)
+        except ValueError as exc:
+            raise p.error(f"{spec.type} '{spec.name}': {exc}") from None
+    missing = [n for n in bhv.needed_domain_vars() if n not in domain]
+    if missing:
+        raise MissionFileError(spec.file, spec.line,
+                               f"{spec.type} '{bhv.name}' needs domain variable(s) {', '.join(missing)}")
+    return bhv
+
+
+class Helm:
+    """One vehicle's helm: behaviours from .bhv files over a decision domain."""
+
+    def __init__(self, bhv_files: list[BhvFile], domain: IvPDomain, ownship: str = "", *,
+                 app_name: str = "pHelmIvP", active_start: bool = False, allow_park: bool = True,
+                 park_on_allstop: bool = False, helm_prefix: str = "", goals_mandatory: bool = False):
+        self.domain, self.ownship, self.app_name = domain, ownship, app_name
+        self.allow_park, self.park_on_allstop, self.helm_prefix = allow_park, park_on_allstop, helm_prefix
+        self.goals_mandatory = goals_mandatory
+        self.info = InfoBuffer()
+        self.modes = [m for f in bhv_files for m in f.modes]
+        self.initializes = [i for f in bhv_files for i in f.initializes]
+        self.behaviors: list[IvPBehavior] = []
+        self.templates: dict[str, tuple[BehaviorSpec, IvPBehavior]] = {}
+        for f in bhv_files:
+            for spec in f.behaviors:
+                bhv = build_behavior(spec, domain, self.info, ownship)
+                if bhv.templating == "spawn":
+                    self.templates[bhv.name] = (spec, bhv)
+                else:
+                    self.behaviors.append(bhv)
+        self.status = "DRIVE" if active_start else "PARK"
+        self.iteration = 0
+        self.start_time: float | None = None
+        self.allstop_status = ""
+        self.last_sent: dict[str, Value] = {}
+        self.mode_values: dict[str, Value] = {}
+        self.seen_own_state = False
+        self.deferred_done = False
+        self.decision: dict[str, float] = {}
+        self.summary_fields: dict[str, str] = {}
+        self.bhv_lists: dict[str, str] = {}
+        self.first_iteration: set[str] = set()
+        self.last_map_clear = -1e9
+
+    # ---- subscriptions and startup ---------------------------------------------------
+    def subscriptions(self) -> list[str]:
+        names = list(ALWAYS_SUBSCRIBED)
+        names += [v for m in self.modes for c in m.conditions for v in c.variables()]
+        names += [i.var for i in self.initializes if i.deferred]
+        for bhv in self.behaviors + [t for _, t in self.templates.values()]:
+            names += bhv.condition_vars()
+        return list(dict.fromkeys(names))
+
+    def startup(self, now: float) -> list[HelmPost]:
+        """Initialize posts, the domain and mode-set descriptions, and IVPHELM_REGISTER lines."""
+        self.start_time = now
+        out: list[HelmPost] = []
+        for init in self.initializes:
+            if not init.deferred:
+                self.info.set(init.var, init.value, now)
+                out.append((init.var, init.value, "HELM_VAR_INIT"))
+        out.append(("IVPHELM_DOMAIN", self.domain.describe(), ""))
+        modeset = "#".join(f"{m.var}={m.value}{'@' + m.prefix if m.prefix else ''}" for m in self.modes)
+        out.append(("IVPHELM_MODESET", modeset, ""))
+        out += [("IVPHELM_REGISTER", v, "") for v in self.subscriptions()]
+        return out
+
+    # ---- mail -------------------------------------------------------------------------
+    def on_mail(self, var: str, value: Value, time: float, source: str = "") -> None:
+        if var == "IVPHELM_STATE":
+            if source == self.app_name:
+                self.seen_own_state = True
+            elif str(value).upper() != "STANDBY" and self.status in ("PARK", "DRIVE"):
+                self.status = "DISABLED"
+            return
+        if var in ("MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE"):
+            text = str(value).strip().lower()
+            if self.status in ("PARK", "DRIVE"):
+                if text == "false":
+                    self.status = "DRIVE"
+                elif text == "true" and self.allow_park:
+                    self.status = "PARK"
+        if var == "HELM_MAP_CLEAR" and time - self.last_map_clear >= 2.0:
+            self.last_map_clear = time
+            self.last_sent.clear()
+        self.info.set(var, value, time)
+
+    def malconfig(self) -> None:
+        self.status = "MALCONFIG"
+
+    # ---- one iteration ---------------------------------------------------------------
+    def iterate(self, now: float) -> list[HelmPost]:
+        self.iteration += 1
+        if self.start_time is None:
+            self.start_time = now
+        out: list[HelmPost] = [("IVPHELM_STATE", self.status, "")]
+        if self.status not in ("PARK", "DRIVE"):
+            return out
+        nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in self.domain else [])
+        if any(self.info.get(v) is None for v in nav_needed):
+            return out
+        if self.seen_own_state and not self.deferred_done:
+            self.deferred_done = True
+            for init in self.initializes:
+                if init.deferred and self.info.get(init.var) is None:
+                    self.info.set(init.var, init.value, now)
+                    out.append((init.var, init.value, "HELM_VAR_INIT"))
+        if self.status == "PARK":
+            out += self._allstop("ManualOverride")
+            self.info.clear_deltas()
+            return out
+        if now - self.start_time < 1.0:
+            return out
+        self._spawn(now, out)
+        mode_posts = self._evaluate_modes(now)
+        functions: list[IvPFunction] = []
+        bhv_posts: list[tuple[IvPBehavior, Post]] = []
+        for bhv in self.behaviors:
+            fn = self._run_behavior(bhv, now)
+            if fn is not None:
+                functions.append(fn)
+            bhv_posts += [(bhv, p) for p in bhv.posts]
+            bhv.posts = []
+        self.decision = solve(self.domain, functions) if functions else {}
+        out += mode_posts
+        error = False
+        for bhv, post in bhv_posts:
+            error = error or post.var == "BHV_ERROR"
+            key = f"{bhv.name}{post.var}{post.key}"
+            if not post.repeatable and self.last_sent.get(key) == post.value:
+                continue
+            self.last_sent[key] = post.value
+            self.info.set(post.var, post.value, now)
+            out.append((post.var, post.value, f"{self.iteration}:{bhv.name}"))
+        out += self._life_events(now)
+        missing = missing_decisions(self.domain, self.decision) if functions else []
+        if error:
+            status = "BehaviorError"
+        elif not functions:
+            status = "NothingToDo"
+        elif missing:
+            status = "MissingDecVars:" + ",".join(missing)
+            out.append(("BHV_ERROR", status, ""))
+        else:
+            status = "clear"
+        out += self._summary(now, functions)
+        out += self._allstop(status)
+        self.info.clear_deltas()
+        return out
+
+    def _allstop(self, status: str) -> list[HelmPost]:
+        out: list[HelmPost] = []
+        if status != self.allstop_status:
+            empty = status in EMPTY_DECISIONS or status.startswith("MissingDecVars")
+            out.append(("IVPHELM_ALLSTOP", status, ""))
+            if empty and self.allstop_status != "IncompleteOrEmptyDecision":
+                self.allstop_status = "IncompleteOrEmptyDecision"
+            else:
+                self.allstop_status = status
+                if status != "clear":
+                    out += [(self._desired_name(v.name, prefixed=False), 0.0, "") for v in self.domain.vars]
+        if status != "clear" and self.park_on_allstop and self.allow_park:
+            self.status = "PARK"
+        if status == "clear":
+            out += [(self._desired_name(n), float(v), "") for n, v in self.decision.items()]
+        return out
+
+    def _desired_name(self, var: str, prefixed: bool = True) -> str:
+        name = "DESIRED_HEADING" if var == "course" else f"DESIRED_{var.upper()}"
+        return f"{self.helm_prefix}_{name}" if prefixed and self.helm_prefix else name
+
+    # ---- modes ----------------------------------------------------------------------
+    def _evaluate_modes(self, now: float) -> list[HelmPost]:
+        pushed: dict[str, Value] = {}
+
+        def lookup(var: str) -> Value | None:
+            return pushed[var] if var in pushed else self.info.get(var)
+
+        for entry in self.modes:
+            if all(c.evaluate(lookup) for c in entry.conditions):
+                value = entry.value
+            elif all(c.evaluate(lookup) for c in entry.mode_var_conditions):
+                value = entry.else_value
+            else:
+                value = ""
+            if value:
+                pushed[entry.var] = f"{entry.prefix}:{value}" if entry.prefix else value
+        out: list[HelmPost] = []
+        for var in sorted(pushed):
+            number = as_number(str(pushed[var]))
+            value = number if number is not None else pushed[var]
+            self.info.set(var, value, now)
+            if self.mode_values.get(var) != value:
+                self.mode_values[var] = value
+                out.append((var, value, ""))
+        return out
+
+    # ---- behaviours ------------------------------------------------------------------
+    def _apply_updates(self, bhv: IvPBehavior, now: float) -> list[HelmPost]:
+        out: list[HelmPost] = []
+        if not bhv.updates_var:
+            return out
+        for raw in self.info.deltas.get(bhv.updates_var, []):
+            text = str(raw).strip()
+            if not text:
+                continue
+            low = text.lower()
+            if text == bhv.last_update and not any(w in low for w in ("toggle", "engage", "mod")):
+                result = "duplicate"
+            else:
+                result = self._apply_update_string(bhv, text)
+            out.append(("IVPHELM_UPDATE_RESULT",
+                        f"bhv={bhv.name},var={bhv.updates_var},time={now:.2f},result={result},val={text}", ""))
+        return out
+
+    def _apply_update_string(self, bhv: IvPBehavior, text: str) -> str:
+        pairs = [p.partition("=") for p in text.split("#") if p.strip()]
+        for key, _, value in pairs:
+            if key.strip().lower() == "name" and value.strip() != bhv.spawn_suffix or bhv.name:
+                return "name_mismatch"
+        bad = []
+        for key, sep, value in pairs:
+            if key.strip().lower() == "name":
+                continue
+            try:
+                if not sep:
+                    raise ValueError
+                bhv.apply(key, value, general_first=False)
+            except ValueError:
+                bad.append(key.strip())
+        if bad:
+            bhv.post("BHV_WARNING", f"Faulty update for behavior: {bhv.name}. Bad parameter(s): {','.join(bad)}",
+                     repeatable=True)
+            return "param_error"
+        bhv.last_update = text
+        bhv.post_flags("configflag")
+        bhv.on_update_applied()
+        return "success"
+
+    def _spawn(self, now: float, out: list[HelmPost]) -> None:
+        for name, (spec, template) in self.templates.items():
+            for raw in self.info.deltas.get(template.updates_var, []):
+                pairs = dict(p.strip().partition("=")[::2] for p in str(raw).split("#"))
+                suffix = pairs.get("name", "").strip()
+                full = name + suffix
+                if not suffix or any(b.name == full for b in self.behaviors):
+                    continue
+                bhv = build_behavior(spec, self.domain, self.info, self.ownship)
+                bhv.name, bhv.spawn_suffix, bhv.templating = full, suffix, ""
+                self.behaviors.append(bhv)
+                out.append(("IVPHELM_LIFE_EVENT", f"iter={self.iteration},time={now:.2f},bname={full},"
+                            f"btype={bhv.type_name},event=spawn,seed={raw}", ""))
+
+    def _run_behavior(self, bhv: IvPBehavior, now: float) -> IvPFunction | None:
+        bhv.now = now
+        for var, value, _ in self._apply_updates(bhv, now):
+            bhv.post(var, value, repeatable=True)
+        if bhv.name not in self.first_iteration:
+            self.first_iteration.add(bhv.name)
+            bhv.post_flags("configflag")
+            bhv.post_flags("spawnxflag")
+        dur = bhv.duration
+        if dur.reset_var and any(str(v) == dur.reset_value or (as_number(dur.reset_value) == v)
+                                 for v in self.info.deltas.get(dur.reset_var, [])):
+            dur.reset(now)
+        prev = bhv.state
+        if bhv.completed:
+            state = "completed"
+        elif not all(c.evaluate(self.info.get) for c in bhv.conditions):
+            state = "idle"
+        else:
+            state = "running"
+            if dur.started is None:
+                dur.reset(now)
+            elif not dur.idle_decay and prev in ("running", "active"):
+                dur.running_time += now - (dur.last_tick or now)
+            if dur.limit is not None and dur.elapsed(now) >= dur.limit:
+                bhv.set_complete()
+                if bhv.completed:
+                    state = "completed"
+                else:
+                    dur.reset(now)
+            if state == "running" and bhv.nostarve and self._starved(bhv, now):
+                state = "idle"
+        dur.last_tick = now
+        bhv.on_every_state()
+        fn = None
+        if state == "idle":
+            if prev != "idle":
+                bhv.idle_started = now
+                bhv.post_flags("idleflag")
+                bhv.post_flags("inactiveflag")
+                if prev in ("running", "active"):
+                    bhv.on_run_to_idle()
+            bhv.on_idle_state()
+        elif state == "running":
+            if prev in ("idle", ""):
+                bhv.run_started = now
+                if prev == "idle":
+                    bhv.on_idle_to_run()
+            fn = bhv.on_run_state()
+            if prev in ("idle", ""):
+                bhv.post_flags("runflag")
+            bhv.post_flags("runxflag")
+            if dur.status_var and dur.limit is not None:
+                bhv.post(dur.status_var, round(max(dur.limit - dur.elapsed(now), 0.0), 2))
+            if fn is not None and fn.has_nan():
+                bhv.post("BHV_ERROR", f"{bhv.name}: objective function has NaN", repeatable=True)
+                fn = None
+            if fn is not None and fn.pwt <= 0:
+                fn = None
+            if fn is not None:
+                state = "active"
+                if prev != "active":
+                    bhv.post_flags("activeflag")
+            elif prev == "active":
+                bhv.post_flags("inactiveflag")
+        if bhv.completed:
+            state, fn = "completed", None
+        bhv.state = state
+        return fn
+
+    def _starved(self, bhv: IvPBehavior, now: float) -> bool:
+        names, secs = bhv.nostarve
+        return any(self.info.times.get(v) is None or now - self.info.times[v] > secs for v in names)
+
+    def _life_events(self, now: float) -> list[HelmPost]:
+        out: list[HelmPost] = []
+        for bhv in [b for b in self.behaviors if b.state == "completed"]:
+            self.behaviors.remove(bhv)
+            out.append(("IVPHELM_LIFE_EVENT", f"iter={self.iteration},time={now:.2f},bname={bhv.name},"
+                        f"btype={bhv.type_name},event=death", ""))
+        return out
+
+    def _summary(self, now: float, functions: list[IvPFunction]) -> list[HelmPost]:
+        groups = {"ACTIVE": [], "RUNNING": [], "IDLE": [], "COMPLETED": []}
+        for bhv in self.behaviors:
+            groups.get(bhv.state.upper(), groups["IDLE"]).append(bhv.name)
+        fields = {
+            "ofnum": str(len(functions)),
+            "halted": "false",
+            "modes": "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items())),
+            "active_bhvs": ":".join(groups["ACTIVE"]) or "none",
+            "running_bhvs": ":".join(groups["RUNNING"]) or "none",
+            "idle_bhvs": ":".join(groups["IDLE"]) or "none",
+            "completed_bhvs": ":".join(groups["COMPLETED"]) or "none",
+        }
+        for v in self.domain.vars:
+            d = self.decision.get(v.name)
+            fields[f"var={v.name}"] = f"{v.name}:{d:g}" if d is not None else f"{v.name}:varbalk"
+        changed = [f"{k}={v}" if not k.startswith("var=") else f"var={v}"
+                   for k, v in fields.items() if self.summary_fields.get(k) != v]
+        self.summary_fields = fields
+        out: list[HelmPost] = [("IVPHELM_ITER", float(self.iteration), ""),
+                               ("IVPHELM_SUMMARY", ",".join([f"iter={self.iteration}",
+                                                             f"utc_time={_time.time():.2f}"] + changed), "")]
+        for kind in ("ACTIVE", "RUNNING", "IDLE"):
+            text = ",".join(groups[kind])
+            if self.bhv_lists.get(kind) != text:
+                self.bhv_lists[kind] = text
+                out += [(f"IVPHELM_BHV_{kind}", text, ""), (f"IVPHELM_BHV_{kind}_CNT", float(len(groups[kind])), "")]
+        return out

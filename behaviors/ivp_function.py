@@ -1,0 +1,38 @@
+"""IvP objective functions as dense utility arrays over some domain variables (spec ivp-helm.md §4.2, §4.5)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class IvPFunction:
+    """Utilities on the product grid of `vars` (array axes in that order), with priority weight `pwt`."""
+
+    vars: tuple[str, ...]
+    values: np.ndarray
+    pwt: float = 100.0
+
+    def __post_init__(self) -> None:
+        if self.values.ndim != len(self.vars):
+            raise ValueError(f"function over {self.vars} needs a {len(self.vars)}-d array")
+
+    def has_nan(self) -> bool:
+        return bool(np.isnan(self.values).any())
+
+
+def _rescale(values: np.ndarray, top: float) -> np.ndarray:
+    lo, hi = float(values.min()), float(values.max())
+    if hi == lo:
+        return values
+    return (values - lo) * (top / (hi - lo))
+
+
+def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 50.0,
+           speed_weight: float = 50.0, pwt: float = 100.0) -> IvPFunction:
+    """Course x speed: each rescaled to its weight, summed on the product grid, rescaled to 0..100."""
+    c = _rescale(f_course.values, course_weight)
+    s = _rescale(f_speed.values, speed_weight)
+    g = c[:, None] + s[None, :]
+    return IvPFunction(f_course.vars + f_speed.vars, _rescale(g, 100.0) if g.max() > g.min() else g, pwt)

@@ -1,0 +1,111 @@
+"""Every .bhv of the mission corpus parses as the helm reads it, with the README's facts."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from behaviors.bhv_file import parse_bhv, read_bhv
+from behaviors.helm import build_behavior
+from behaviors.behavior import InfoBuffer
+from moosdb_py.source import MissionFileError, SourceLine
+
+
+def bhv_lines(text: str, name: str = "t.bhv") -> list[SourceLine]:
+    return [SourceLine(t, Path(name), i) for i, t in enumerate(text.splitlines(), 1)]
+
+
+def test_every_corpus_bhv_parses(corpus):
+    files = sorted(corpus.glob("*/*.bhv"))
+    assert len(files) >= 8
+    for f in files:
+        assert read_bhv(f).behaviors, f
+
+
+def test_s1_alpha_facts(corpus, domain):
+    bhv = read_bhv(corpus / "s1_alpha" / "alpha.bhv")
+    assert [(i.var, i.value) for i in bhv.initializes] == [("DEPLOY", "false"), ("RETURN", "false")]
+    assert bhv.modes == []
+    assert [(b.type, b.name) for b in bhv.behaviors] == [
+        ("BHV_Waypoint", "waypt_survey"), ("BHV_Waypoint", "waypt_return"), ("BHV_ConstantSpeed", "const_speed")]
+    survey = bhv.behavior("waypt_survey")
+    assert survey.get_all("condition") == ["RETURN = false", "DEPLOY = true"]
+    assert survey.get("updates") == "WPT_UPDATE" and survey.get("speed") == "3"
+    assert survey.get_all("endflag") == ["RETURN = true", "SUMMARY=speed=$[SPEED],time=$[DUR_RUN_TIME]"]
+    wpt = build_behavior(survey, domain, InfoBuffer(), "alpha")
+    assert wpt.points.tolist() == [[60, -40], [60, -160], [150, -160], [180, -100], [150, -40]]
+    assert (wpt.perpetual, wpt.lead, wpt.lead_damper, wpt.lead_to_start, wpt.capture_line) == (True, 8, 1, True, True)
+    assert (wpt.capture_radius, wpt.slip_radius, wpt.speed, wpt.speed_alt, wpt.use_alt_speed) == (5, 15, 3, 1.2, True)
+    assert wpt.wptflag_on_start and len(wpt.flags["wptflag"]) == 4 and len(wpt.flags["activeflag"]) == 3
+    ret = build_behavior(bhv.behavior("waypt_return"), domain, InfoBuffer(), "alpha")
+    assert ret.points.tolist() == [[0, -20]] and (ret.capture_radius, ret.slip_radius) == (2, 8)
+    assert [f.var for f in ret.flags["endflag"]] == ["RETURN", "DEPLOY", "MISSION"]
+    spd = build_behavior(bhv.behavior("const_speed"), domain, InfoBuffer(), "alpha")
+    assert (spd.pwt, spd.duration.limit, spd.duration.reset_var) == (200, 10, "CONST_SPD_RESET")
+
+
+def test_minicourse_waypoints(corpus, domain):
+    bhv = read_bhv(corpus / "minicourse_s2_alpha" / "alpha.bhv")
+    assert len(bhv.initializes) == 3
+    pts = {b.name: build_behavior(b, domain, InfoBuffer(), "alpha").points.tolist() for b in bhv.behaviors}
+    assert len(pts["waypt_survey"]) == 5
+    assert pts["west_waypt_survey"] == [[-35, -65], [-35, -125], [20, -125], [20, -65]]
+    assert pts["waypt_return"] == [[0, -20]]
+
+
+def test_station_keep_uuv_modes_and_station(corpus, domain):
+    bhv = read_bhv(corpus / "station-keep-uuv" / "davis.bhv")
+    assert [(m.value, m.prefix, m.else_value) for m in bhv.modes] == [
+        ("ACTIVE", "", "INACTIVE"), ("STATION-KEEPING", "ACTIVE", ""), ("LOITERING", "ACTIVE", ""),
+        ("RETURNING", "ACTIVE", "")]
+    assert [str(c) for c in bhv.modes[2].conditions] == ["MODE=ACTIVE", "STATION_KEEP=false", "LOITER=true"]
+    sk = build_behavior(bhv.behavior("station-keep"), domain, InfoBuffer(), "davis")
+    assert sk.static_pt == (20, -20)
+    assert (sk.inner, sk.outer, sk.outer_speed, sk.transit_speed, sk.swing_time, sk.hibernation_radius,
+            sk.center_activate) == (5, 10, 1.0, 1.3, 7, 25, False)
+    assert bhv.behavior("loiter").get("priority") == "100"
+    assert bhv.behavior("station_depth").get("duration") == "no-time-limit"
+
+
+def test_m2_berta_skips_commented_header_block(corpus):
+    bhv = read_bhv(corpus / "m2_berta" / "meta_vehicle.bhv")
+    assert [b.name for b in bhv.behaviors] == ["loiter", "avdcol_", "waypt_return", "station-keep"]
+    assert bhv.behavior("avdcol_").templating == "spawn"
+    assert bhv.behavior("station-keep").get("center_activate") == "true"
+    assert [m.value for m in bhv.modes] == ["ACTIVE", "STATION-KEEPING", "RETURNING", "LOITERING"]
+
+
+def test_targ_files_use_start_pos(corpus, domain):
+    bhv = read_bhv(corpus / "minicourse_lab_henry_gilda_baseline" / "targ_henry.bhv")
+    ret = build_behavior(bhv.behavior("waypt_return"), domain, InfoBuffer(), "henry")
+    assert ret.points.tolist() == [[80, 0]]
+
+
+@pytest.mark.parametrize("text, line, fragment", [
+    ("Behavior = BHV_Waypoint\n{\n name = a\n", 3, "unexpected end of file"),
+    ("name = x\n", 1, "outside any block"),
+    ("set MODE = A {\n DEPLOY == true\n}\n", 2, "not allowed"),
+    ("Behavior = BHV_Waypoint\n{\n condition = (A=1) and B=2\n}\n", 3, "condition"),
+    ("Behavior = BHV_Waypoint\n{\n endflag = RETURN\n}\n", 3, "VAR = value"),
+    ("Behavior = BHV_Waypoint\n name = x\n", 2, "expected '{'"),
+    ("Behavior = BHV_Waypoint\n{\n}\nBehavior = BHV_Waypoint\n{\n}\n", 4, "duplicate"),
+    ("initialize DEPLOY\n", 1, "bad initialize"),
+    ("}\n", 1, "unexpected '}'"),
+])
+def test_errors_name_file_and_line(text, line, fragment):
+    with pytest.raises(MissionFileError) as err:
+        parse_bhv(bhv_lines(text))
+    assert err.value.line == line and fragment in err.value.message
+    assert str(err.value).startswith(f"t.bhv:{line}:")
+
+
+def test_line_model_details(domain):
+    text = ("initialize MSG = \"a,b\", N = 3\ninitialize_ LATE = x\n"
+            "Behavior = BHV_Waypoint {\n  points = 1,2 : \\\n 3,4 // two points\n} \n"
+            "set MODE = A {\nDEPLOY = true\n}\nELSEWORD\n")
+    bhv = parse_bhv(bhv_lines(text))
+    assert [(i.var, i.value, i.deferred) for i in bhv.initializes] == [
+        ("MSG", "a,b", False), ("N", 3.0, False), ("LATE", "x", True)]
+    assert bhv.behaviors[0].get("points") == "1,2 :  3,4"
+    assert bhv.modes[0].else_value == "ELSEWORD"
+    assert np.array_equal(build_behavior(bhv.behaviors[0], domain, InfoBuffer(), "").points, [[1, 2], [3, 4]])
+

@@ -1,0 +1,106 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from behaviors.domain import IvPDomain, parse_domain_line
+from behaviors.ivp_function import IvPFunction, couple
+from behaviors.solver import missing_decisions, solve
+from behaviors.zaic import PeakComponent, zaic_heq, zaic_leq, zaic_peak
+
+
+def test_domain_lines():
+    v = parse_domain_line("speed:0:4:41")
+    assert v.delta == pytest.approx(0.1) and v.values[-1] == pytest.approx(4.0)
+    d = parse_domain_line("speed,0,4,delta=0.3")
+    assert d.npts == 14 and d.delta == pytest.approx(4 / 13)
+    assert parse_domain_line("depth:0:100:101:optional").optional
+    for bad in ("speed:0:4", "speed:4:0:10", "speed:1:1:5", "speed:0:4:x", "depth:0:1:2:maybe"):
+        with pytest.raises(ValueError):
+            parse_domain_line(bad)
+
+
+def test_peak_shape_matches_spec_numbers(domain):
+    course = domain.var("course")
+    u = zaic_peak(course, [PeakComponent(0, 30, 180, 5, 0, 20)], value_wrap=True)
+    assert u[0] == 20 and u[30] == pytest.approx(15) and u[330] == pytest.approx(15)
+    assert u[180] == pytest.approx(2.5)
+    c0 = zaic_peak(course, [PeakComponent(90, 0, 180, 50, 0, 100)], value_wrap=True)
+    assert c0[90] == 100 and c0[270] == 0 and c0[0] == pytest.approx(50)
+
+
+def test_peak_summit_insist_between_grid_points():
+    var = parse_domain_line("speed:0:4:5")
+    u = zaic_peak(var, [PeakComponent(1.4, 0, 0.2, 0, 0, 25)])
+    assert u.tolist() == [0, 25, 0, 0, 0]
+
+
+def test_peak_sum_and_max_modes(domain):
+    spd = domain.var("speed")
+    comps = [PeakComponent(1, 0, 1, 0, 0, 50), PeakComponent(1.5, 0, 1, 0, 0, 50)]
+    assert zaic_peak(spd, comps, max_mode=False)[12] == pytest.approx(40 + 35)
+    assert zaic_peak(spd, comps)[12] == pytest.approx(40)
+    with pytest.raises(ValueError):
+        zaic_peak(spd, [PeakComponent(1, 0, 1, 0, 50, 50)])
+
+
+def test_leq_and_heq(domain):
+    spd = domain.var("speed")
+    leq = zaic_leq(spd, 2.0, 1.0)
+    assert leq[20] == 100 and leq[0] == 100 and leq[25] == pytest.approx(50) and leq[35] == 0
+    heq = zaic_heq(spd, 2.0, 1.0)
+    assert heq[40] == 100 and heq[15] == pytest.approx(50) and heq[5] == 0
+
+
+def test_couple_spans_0_100(domain):
+    crs = IvPFunction(("course",), zaic_peak(domain.var("course"), [PeakComponent(45, 0, 180)], value_wrap=True))
+    spd = IvPFunction(("speed",), zaic_peak(domain.var("speed"), [PeakComponent(2, 1, 1.6, 20)]))
+    f = couple(crs, spd, 70, 30, pwt=50)
+    assert f.values.shape == (360, 41) and f.values.max() == pytest.approx(100) and f.values.min() == 0
+    assert np.unravel_index(np.argmax(f.values), f.values.shape) == (45, 20)
+    assert f.pwt == 50
+
+
+def test_missing_decision_and_ignored_zero_pwt(domain):
+    spd = IvPFunction(("speed",), zaic_peak(domain.var("speed"), [PeakComponent(1, 0, 1)]))
+    decision = solve(domain, [spd, IvPFunction(("course",), np.ones(360), pwt=0)])
+    assert decision == {"speed": 1.0}
+    assert missing_decisions(domain, decision) == ["course"]
+
+
+arrays = st.integers(1, 4).flatmap(lambda n: st.lists(
+    st.tuples(st.sampled_from(["course", "speed", "both"]), st.floats(0, 200),
+              st.integers(0, 2**32 - 1)), min_size=n, max_size=n))
+
+
+@settings(max_examples=40, deadline=None)
+@given(arrays)
+def test_solver_maximises_weighted_sum(specs):
+    dom = IvPDomain(vars=[parse_domain_line("course:0:359:36"), parse_domain_line("speed:0:4:9")])
+    fns, total = [], np.zeros((36, 9))
+    for which, pwt, seed in specs:
+        rng = np.random.default_rng(seed)
+        if which == "course":
+            f = IvPFunction(("course",), rng.uniform(0, 300, 36), pwt)
+            full = np.broadcast_to(f.values[:, None], (36, 9))
+        elif which == "speed":
+            f = IvPFunction(("speed",), rng.uniform(0, 100, 9), pwt)
+            full = np.broadcast_to(f.values[None, :], (36, 9))
+        else:
+            f = IvPFunction(("speed", "course"), rng.uniform(0, 100, (9, 36)), pwt)
+            full = f.values.T
+        span = full.max() - full.min()
+        scaled = (full - full.min()) * 100 / span if span > 100 else full
+        total += scaled * pwt
+        fns.append(f)
+    decision = solve(dom, fns)
+    if not decision:
+        assert all(f.pwt <= 0 for f in fns)
+        return
+    i = dom.var("course").index_of(decision["course"]) if "course" in decision else None
+    j = dom.var("speed").index_of(decision["speed"]) if "speed" in decision else None
+    if i is not None and j is not None:
+        assert total[i, j] == pytest.approx(total.max(), rel=1e-9, abs=1e-9)
+    else:
+        assert (i is None) != (j is None)
+        axis_best = total[i, :] if j is None else total[:, j]
+        assert axis_best.max() == pytest.approx(total.max(), rel=1e-9, abs=1e-9)
