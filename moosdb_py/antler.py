@@ -1,0 +1,370 @@
+"""pAntler: launch a mission's MOOSDB and apps from its ANTLER block, and stop them all together.
+
+Python and C++ apps mix: a name the project implements (the `moosdb_py.apps` entry points, or one of
+its console scripts) runs the Python app with this interpreter, any other name is looked up in
+ExecutablePath / on PATH. Every child gets its own session, so a terminal Ctrl-C reaches only
+pAntler, which then stops each child's whole process group (SIGTERM, then SIGKILL); on Linux the
+children also get SIGTERM if pAntler itself is killed. Nothing starts when the mission cannot be
+read.
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ctypes
+import os
+import re
+import shutil
+import signal
+import socket
+import sys
+import tempfile
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+from .mission import AntlerRun, Mission, parse_mission
+from .nsplug import parse_defines, preprocess
+from .source import MissionFileError
+
+APP_GROUP = "moosdb_py.apps"
+DB_NAMES = ("MOOSDB", "moosdb")
+DB_TARGET = "moosdb_py.moosdb:main"
+STOP_GRACE = 3.0          # seconds a child gets between SIGTERM and SIGKILL
+DB_READY_TIMEOUT = 10.0
+LAST_LINES = 8
+# Runs `module:attr` with argv = [name, args...]; a class target is a MOOSApp, whose `main` is the entry.
+_BOOT = ("import importlib, sys\n"
+         "mod, _, attr = sys.argv[1].partition(':')\n"
+         "obj = importlib.import_module(mod)\n"
+         "for part in attr.split('.'): obj = getattr(obj, part)\n"
+         "sys.argv = sys.argv[2:]\n"
+         "sys.exit((obj.main if isinstance(obj, type) else obj)())\n")
+
+EXAMPLE = """\
+ProcessConfig = ANTLER
+{
+  MSBetweenLaunches = 1000        // ms to wait after each launch (default 1000)
+  ExecutablePath    = SYSTEMPATH  // or a folder searched before PATH (default SYSTEMPATH)
+
+  // Run = <exe> [@ NewConsole=false, InhibitMOOSParams=false, Path=<dir>, ExtraProcessParams=<Key>] [~ <MOOSName>]
+  Run = MOOSDB        @ NewConsole = false
+  Run = pLogger       @ NewConsole = false
+  Run = uXMS          @ NewConsole = false, ExtraProcessParams = XmsArgs ~ uXMS_NAV
+  XmsArgs = NAV_X,NAV_Y
+}
+"""
+INTERFACE = """\
+pAntler is a launcher, not a MOOS client: it subscribes to nothing and publishes nothing.
+Each child is started as `<exe> <mission.moos> <MOOSName> [extra params]` (MOOSDB: `<mission.moos>`).
+"""
+
+
+@dataclass
+class LaunchSpec:
+    """How one `Run =` line is started: a Python target (`module:attr`) or an executable."""
+
+    run: AntlerRun
+    args: list[str]                        # after the program: mission, MOOS name, extra params
+    target: str | None = None              # Python `module:attr`
+    executable: str | None = None          # external program
+    is_db: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.run.moos_name
+
+    @property
+    def hostable(self) -> bool:
+        """A MOOSApp class that --one-process can run inside pAntler's own interpreter."""
+        return self.target is not None and not self.is_db and _load(self.target, check_class=True) is not None
+
+    def argv(self) -> list[str]:
+        if self.target is not None:
+            return [sys.executable, "-c", _BOOT, self.target, self.name, *self.args]
+        return [self.executable, *self.args]
+
+
+def _load(target: str, check_class: bool = False):
+    module, _, attr = target.partition(":")
+    try:
+        obj = __import__(module, fromlist=["_"])
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError):
+        return None
+    return obj if not check_class or isinstance(obj, type) else None
+
+
+def python_target(name: str) -> str | None:
+    """`module:attr` of a project app named `name` (the app group first, then console scripts)."""
+    for group in (APP_GROUP, "console_scripts"):
+        found = [ep for ep in metadata.entry_points(group=group, name=name)]
+        if group == "console_scripts":
+            found = [ep for ep in found if ep.value.split(".")[0] in ("moosdb_py", "behaviors", "oilspill_moos")]
+        if found:
+            return found[0].value
+    return None
+
+
+def plan(mission: Mission, mission_file: Path, only: list[str] | None = None) -> tuple[list[LaunchSpec], list[str]]:
+    """The launch list in Run order (filtered by MOOS name), and a problem line for each run that cannot start."""
+    if mission.antler is None:
+        raise MissionFileError(mission.path, 0, "no ProcessConfig = ANTLER block")
+    specs, problems = [], []
+    for run in mission.antler.runs:
+        if only and run.moos_name not in only:
+            continue
+        spec = _resolve(run, mission.antler.executable_path, str(mission_file))
+        if spec is None:
+            problems.append(f"{run.source}: cannot launch {run.exe}: not a project app and not found on PATH")
+        else:
+            specs.append(spec)
+    return specs, problems
+
+
+def _resolve(run: AntlerRun, executable_path: str | None, mission_file: str) -> LaunchSpec | None:
+    base = Path(run.exe).name
+    is_db = base in DB_NAMES
+    if is_db:
+        args = [] if run.inhibit_moos_params else [mission_file]
+    else:
+        args = [] if run.inhibit_moos_params else [mission_file, run.moos_name]
+    args += run.extra_params
+    folder = run.path if run.path and run.path.upper() not in ("SYSTEM", "SYSTEMPATH") else executable_path
+    if folder and (Path(folder) / run.exe).is_file() and os.access(Path(folder) / run.exe, os.X_OK):
+        return LaunchSpec(run, args, executable=str(Path(folder) / run.exe), is_db=is_db)
+    if "/" not in run.exe:
+        target = DB_TARGET if is_db else python_target(run.exe)
+        if target is not None:
+            return LaunchSpec(run, args, target=target, is_db=is_db)
+    found = shutil.which(run.exe)
+    return None if found is None else LaunchSpec(run, args, executable=found, is_db=is_db)
+
+
+def expanded_mission(path: Path, defines: dict, overrides: dict[str, str], folder: Path) -> tuple[Mission, Path]:
+    """Read the mission; when nsplug or overrides changed its text, write the expansion for the children.
+
+    The children read a plain file, as after MOOS-IvP's `nsplug meta.moos targ.moos`; overrides
+    (`--MOOSTimeWarp=10`) go first because the first global line wins.
+    """
+    lines = preprocess(path, defines)
+    mission = parse_mission(path, lines)
+    mission.check()
+    text = "".join(line.text + "\n" for line in lines)
+    if not overrides and text == path.read_text(encoding="latin-1") + "\n":
+        return mission, path.resolve()
+    target = folder / path.name
+    target.write_text("".join(f"{k} = {v}\n" for k, v in overrides.items()) + text, encoding="latin-1")
+    return parse_mission(target, preprocess(target)), target
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: new session, and SIGTERM when pAntler dies (Linux prctl)."""
+    os.setsid()
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+@dataclass
+class Child:
+    spec: LaunchSpec
+    process: asyncio.subprocess.Process
+    last: deque = field(default_factory=lambda: deque(maxlen=LAST_LINES))
+
+
+class Antler:
+    """Starts the plan in order, echoes children's output, reports deaths, stops everything on request."""
+
+    def __init__(self, mission: Mission, specs: list[LaunchSpec], *, quiet: bool = False, one_process: bool = False,
+                 out=None):
+        self.mission = mission
+        self.specs = specs
+        self.quiet = quiet
+        self.one_process = one_process
+        self.out = out or sys.stdout
+        self.children: list[Child] = []
+        self.hosted: list = []
+        self.stopping = asyncio.Event()
+        self.failures: list[str] = []   # MOOS names that could not start or died on their own
+        self._tasks: list[asyncio.Task] = []
+
+    def say(self, text: str) -> None:
+        print(f"pAntler: {text}", file=self.out, flush=True)
+
+    async def run(self) -> int:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, self.stopping.set)
+        try:
+            pause = self.mission.antler.ms_between_launches / 1000.0
+            for spec in self.specs:
+                if self.stopping.is_set():
+                    break
+                if not await self._launch(spec):
+                    self.failures.append(spec.name)
+                if spec.is_db:
+                    await self._wait_for_db()
+                await self._pause(pause)
+            await self._supervise()
+        finally:
+            await self.stop()
+        return 1 if self.failures else 0
+
+    async def _pause(self, seconds: float) -> None:
+        try:
+            await asyncio.wait_for(self.stopping.wait(), seconds)
+        except asyncio.TimeoutError:
+            pass
+
+    async def _launch(self, spec: LaunchSpec) -> bool:
+        if self.one_process and spec.hostable:
+            return self._host(spec)
+        try:
+            process = await asyncio.create_subprocess_exec(
+                *spec.argv(), stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
+                stderr=asyncio.subprocess.STDOUT, preexec_fn=_die_with_parent,
+                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        except OSError as exc:
+            self.say(f"{spec.run.source}: cannot start {spec.run.exe}: {exc.strerror}")
+            return False
+        child = Child(spec, process)
+        self.children.append(child)
+        self._tasks.append(asyncio.create_task(self._watch(child)))
+        self.say(f"launched {spec.name} (pid {process.pid})")
+        return True
+
+    def _host(self, spec: LaunchSpec) -> bool:
+        """--one-process: the MOOSApp runs in this interpreter, still its own client with its own tick."""
+        app_class = _load(spec.target, check_class=True)
+        try:
+            app = app_class(str(spec.args[0]) if spec.args else None, spec.name)
+        except (ValueError, MissionFileError, OSError) as exc:
+            self.say(f"{spec.name}: cannot start: {exc}")
+            return False
+        self.hosted.append(app)
+        task = asyncio.create_task(app.run_async())
+        task.add_done_callback(lambda t, name=spec.name: self._hosted_done(name, t))
+        self._tasks.append(task)
+        self.say(f"hosting {spec.name} in-process")
+        return True
+
+    def _hosted_done(self, name: str, task: asyncio.Task) -> None:
+        if not task.cancelled() and task.exception() is not None and not self.stopping.is_set():
+            self.failures.append(name)
+            self.say(f"{name} (in-process) failed: {task.exception()}")
+
+    async def _watch(self, child: Child) -> None:
+        prefix = f"[{child.spec.name}] "
+        while line := await child.process.stdout.readline():
+            text = line.decode("utf-8", errors="replace").rstrip("\n")
+            child.last.append(text)
+            if not self.quiet:
+                print(prefix + text, file=self.out, flush=True)
+        code = await child.process.wait()
+        if not self.stopping.is_set():
+            if code != 0:
+                self.failures.append(child.spec.name)
+            tail = "".join(f"\n    {t}" for t in child.last) or " (no output)"
+            self.say(f"{child.spec.name} (pid {child.process.pid}) exited with code {code}; last output:{tail}")
+
+    async def _wait_for_db(self) -> None:
+        host, port = self.mission.server_host, self.mission.server_port
+        deadline = time.monotonic() + DB_READY_TIMEOUT
+        while time.monotonic() < deadline and not self.stopping.is_set():
+            try:
+                socket.create_connection((host, port), timeout=0.2).close()
+                return
+            except OSError:
+                await asyncio.sleep(0.05)
+        self.say(f"MOOSDB not accepting on {host}:{port} after {DB_READY_TIMEOUT:g} s; launching the rest anyway")
+
+    async def _supervise(self) -> None:
+        """Until a stop request, or until no child is left and nothing is hosted."""
+        while not self.stopping.is_set():
+            if not self.hosted and all(c.process.returncode is not None for c in self.children):
+                self.say("every process has exited")
+                return
+            await self._pause(0.2)
+
+    async def stop(self) -> None:
+        self.stopping.set()
+        for app in reversed(self.hosted):
+            app.stop()
+        live = [c for c in reversed(self.children) if c.process.returncode is None]
+        for child in live:
+            _signal_group(child.process.pid, signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE
+        for child in live:
+            try:
+                await asyncio.wait_for(child.process.wait(), max(0.05, deadline - time.monotonic()))
+            except asyncio.TimeoutError:
+                self.say(f"{child.spec.name} ignored SIGTERM; killing it")
+                _signal_group(child.process.pid, signal.SIGKILL)
+                await child.process.wait()
+        for child in self.children:   # grandchildren left in a group whose leader already exited
+            _signal_group(child.process.pid, signal.SIGKILL)
+        if self._tasks:
+            await asyncio.wait(self._tasks, timeout=STOP_GRACE)
+        for task in self._tasks:
+            task.cancel()
+
+
+def _signal_group(pid: int, sig: int) -> None:
+    try:
+        os.killpg(pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pAntler", description=__doc__.split("\n\n")[0],
+        epilog="Any other --Name=value option overrides that global of the mission (e.g. --MOOSTimeWarp=10).")
+    p.add_argument("mission", nargs="?", help="mission file (.moos, or an nsplug template with --nsplug)")
+    p.add_argument("only", nargs="*", help="launch only these MOOS names (the ~ alias if given)")
+    p.add_argument("--nsplug", "-D", action="append", default=[], metavar="VAR=value",
+                   help="nsplug macro for a templated mission (repeatable; a bare VAR defines it empty)")
+    p.add_argument("--one-process", action="store_true",
+                   help="run the community's Python apps inside this process, each its own MOOS client and tick")
+    p.add_argument("--quiet", "--terse", action="store_true", help="do not echo the children's output")
+    p.add_argument("--example", action="store_true", help="print an example ANTLER block")
+    p.add_argument("--interface", action="store_true", help="print what pAntler subscribes to and publishes")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, unknown = _parser().parse_known_args(argv)
+    if args.example or args.interface:
+        print(EXAMPLE if args.example else INTERFACE, end="")
+        return 0
+    overrides = {}
+    for option in unknown:
+        match = re.fullmatch(r"--(\w+)=(.*)", option)
+        if match is None:
+            _parser().error(f"unrecognized argument {option}")
+        overrides[match.group(1)] = match.group(2)
+    if not args.mission:
+        _parser().error("a mission file is required")
+    with tempfile.TemporaryDirectory(prefix="pAntler_") as folder:
+        try:
+            mission, child_file = expanded_mission(Path(args.mission), parse_defines(args.nsplug), overrides,
+                                                   Path(folder))
+            specs, problems = plan(mission, child_file, args.only)
+        except (MissionFileError, ValueError) as exc:
+            print(f"pAntler: {exc}; nothing started", file=sys.stderr)
+            return 1
+        for problem in problems:
+            print(f"pAntler: {problem}", file=sys.stderr)
+        if not specs:
+            print("pAntler: nothing to launch", file=sys.stderr)
+            return 1
+        return asyncio.run(Antler(mission, specs, quiet=args.quiet, one_process=args.one_process).run())
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""pAntler: launch plans, nsplug'd missions, and real runs that must leave no process behind."""
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from helpers import wait_until
+from moosdb_py.antler import DB_TARGET, expanded_mission, plan
+from moosdb_py.mission import read_mission
+from moosdb_py.source import MissionFileError
+
+ANTLER = """ServerHost = localhost
+ServerPort = {port}
+Community = test
+
+ProcessConfig = ANTLER
+{{
+  MSBetweenLaunches = 10
+{runs}
+  SleepArgs = 300
+  LsArgs = /no/such/folder/for/pantler
+}}
+"""
+
+
+def write(tmp_path, runs, port=9000, name="m.moos"):
+    path = tmp_path / name
+    path.write_text(ANTLER.format(port=port, runs=runs))
+    return path
+
+
+def test_plan_resolves_python_apps_the_db_and_path_programs(tmp_path):
+    (tmp_path / "bin").mkdir()
+    tool = tmp_path / "bin" / "iTool"
+    tool.write_text("#!/bin/sh\n")
+    tool.chmod(0o755)
+    path = write(tmp_path, "\n".join([
+        "  Run = MOOSDB @ NewConsole = false",
+        "  Run = pLogger @ NewConsole = true ~ pLogger_2",
+        "  Run = sleep @ InhibitMOOSParams = true, ExtraProcessParams = SleepArgs",
+        f"  Run = iTool @ Path = {tmp_path / 'bin'}",
+        "  Run = pNoSuchApp",
+    ]))
+    specs, problems = plan(read_mission(path), path)
+    assert [(s.name, s.target, s.executable, s.args) for s in specs] == [
+        ("MOOSDB", DB_TARGET, None, [str(path)]),
+        ("pLogger_2", "moosdb_py.logger:Logger", None, [str(path), "pLogger_2"]),
+        ("sleep", None, subprocess.run(["which", "sleep"], capture_output=True, text=True).stdout.strip(), ["300"]),
+        ("iTool", None, str(tool), [str(path), "iTool"])]
+    assert specs[1].argv()[:2] == [sys.executable, "-c"] and specs[1].argv()[3:] == [
+        "moosdb_py.logger:Logger", "pLogger_2", str(path), "pLogger_2"]
+    assert problems == [f"{path}:12: cannot launch pNoSuchApp: not a project app and not found on PATH"]
+    only, _ = plan(read_mission(path), path, ["pLogger_2", "iTool"])
+    assert [s.name for s in only] == ["pLogger_2", "iTool"]
+
+
+def test_plan_needs_an_antler_block(tmp_path):
+    path = tmp_path / "x.moos"
+    path.write_text("Community = a\n")
+    with pytest.raises(MissionFileError, match="no ProcessConfig = ANTLER block"):
+        plan(read_mission(path), path)
+
+
+def test_templates_and_overrides_are_expanded_for_the_children(tmp_path):
+    meta = tmp_path / "meta.moos"
+    meta.write_text("ServerPort = $(PORT)\nMOOSTimeWarp = 1\n#ifdef SIM\nCommunity = sim\n#endif\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    mission, child_file = expanded_mission(meta, {"PORT": "9555", "SIM": "1"}, {"MOOSTimeWarp": "20"}, out)
+    assert child_file == out / "meta.moos"
+    assert (mission.server_port, mission.community, mission.time_warp) == (9555, "sim", 20.0)
+    plain = tmp_path / "plain.moos"
+    plain.write_text("ServerPort = 9001\n")
+    assert expanded_mission(plain, {}, {}, out)[1] == plain.resolve()
+    with pytest.raises(MissionFileError, match=r"meta.moos:1: ServerPort = '\$\(PORT\)'"):
+        expanded_mission(meta, {}, {}, out)
+
+
+def pantler(*args, cwd=None):
+    return subprocess.Popen([sys.executable, "-m", "moosdb_py.antler", *map(str, args)], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+def test_unreadable_mission_starts_nothing(tmp_path):
+    path = write(tmp_path, "  Run = MOOSDB\n  Run = sleep @ Bad")
+    proc = pantler(path)
+    out, _ = proc.communicate(timeout=20)
+    assert proc.returncode == 1
+    assert f"{path}:9: Run option 'Bad' is not key=value" in out and "nothing started" in out
+    assert "launched" not in out
+
+
+class Output:
+    """Collects a process's output lines on a thread, so the test can wait on them."""
+
+    def __init__(self, proc):
+        self.lines: list[str] = []
+        self.thread = threading.Thread(target=lambda: self.lines.extend(proc.stdout), daemon=True)
+        self.thread.start()
+
+    @property
+    def text(self) -> str:
+        return "".join(self.lines)
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    status = Path(f"/proc/{pid}/status")
+    return not (status.exists() and "\nState:\tZ" in status.read_text())
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_stops_every_child_and_dead_children_are_reported(tmp_path, free_port, sig):
+    path = write(tmp_path, "\n".join([
+        "  Run = MOOSDB",
+        "  Run = sleep @ InhibitMOOSParams = true, ExtraProcessParams = SleepArgs",
+        "  Run = sleep @ InhibitMOOSParams = true, ExtraProcessParams = SleepArgs ~ sleep_2",
+        "  Run = ls @ InhibitMOOSParams = true, ExtraProcessParams = LsArgs",
+    ]), port=free_port())
+    proc = pantler(path, cwd=tmp_path)
+    output = Output(proc)
+    try:
+        wait_until(lambda: "ls (pid" in output.text and "exited with code 2" in output.text, timeout=20)
+        pids = [int(p) for p in re.findall(r"launched \S+ \(pid (\d+)\)", output.text)]
+        assert len(pids) == 4
+        assert "/no/such/folder/for/pantler" in output.text.split("exited with code 2; last output:")[1]
+        proc.send_signal(sig)
+        proc.wait(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    output.thread.join(5)
+    assert proc.returncode == 1   # ls failed on its own
+    assert not [pid for pid in pids if alive(pid)]
