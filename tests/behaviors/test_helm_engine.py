@@ -1,0 +1,170 @@
+"""The helm engine as pure logic: a fake clock and a simple kinematic boat, no MOOS."""
+import math
+from pathlib import Path
+
+import pytest
+
+from behaviors.bhv_file import parse_bhv, read_bhv
+from behaviors.helm import Helm
+from moosdb_py.source import MissionFileError, SourceLine
+
+
+def bhv_of(text: str):
+    return parse_bhv([SourceLine(t, Path("t.bhv"), i) for i, t in enumerate(text.splitlines(), 1)])
+
+
+class Boat:
+    """Turns toward DESIRED_HEADING at a fixed rate and takes DESIRED_SPEED at once."""
+
+    def __init__(self, x=0.0, y=0.0, heading=0.0, current=(0.0, 0.0)):
+        self.x, self.y, self.heading, self.speed, self.current = x, y, heading, 0.0, current
+
+    def step(self, desired: dict, dt: float):
+        want = desired.get("DESIRED_HEADING", self.heading)
+        turn = (want - self.heading + 180) % 360 - 180
+        self.heading = (self.heading + max(-40 * dt, min(40 * dt, turn))) % 360
+        self.speed = desired.get("DESIRED_SPEED", 0.0)
+        rad = math.radians(self.heading)
+        self.x += (self.speed * math.sin(rad) + self.current[0]) * dt
+        self.y += (self.speed * math.cos(rad) + self.current[1]) * dt
+
+    def nav(self):
+        return dict(NAV_X=self.x, NAV_Y=self.y, NAV_HEADING=self.heading, NAV_SPEED=self.speed)
+
+
+def run(helm: Helm, boat: Boat, seconds: float, dt=0.25, start=0.0, pokes=None, log=None):
+    t = start
+    while t < start + seconds:
+        for var, value in boat.nav().items():
+            helm.on_mail(var, value, t)
+        for var, value in (pokes or {}).pop(round(t, 2), {}).items():
+            helm.on_mail(var, value, t)
+        posts = helm.iterate(t)
+        if log is not None:
+            log.extend((t, v, val) for v, val, _ in posts)
+        boat.step({v: val for v, val, _ in posts if v.startswith("DESIRED_")}, dt)
+        if log is not None:
+            log.append((t, "POS", (boat.x, boat.y)))
+        t += dt
+    return t
+
+
+def test_alpha_survey_visits_every_waypoint_in_order_and_returns(corpus, domain):
+    helm = Helm([read_bhv(corpus / "s1_alpha" / "alpha.bhv")], domain, "alpha", active_start=True)
+    helm.startup(0.0)
+    boat, log = Boat(0, -20, 180), []
+    run(helm, boat, 600, pokes={1.0: {"DEPLOY": "true"}}, log=log)
+    track = [(t, val) for t, v, val in log if v == "POS"]
+    closest = [0.0]
+    for wx, wy in [(60, -40), (60, -160), (150, -160), (180, -100), (150, -40), (0, -20)]:
+        t, d = min(((t, math.hypot(x - wx, y - wy)) for t, (x, y) in track if t > closest[-1]),
+                   key=lambda p: p[1])
+        closest.append(t)
+        assert d < 5
+    assert closest == sorted(closest)
+    indexes = [val for _, v, val in log if v == "WPT_INDEX"]
+    assert indexes[:5] == [0.0, 1.0, 2.0, 3.0, 4.0]
+    stats = [val for _, v, val in log if v == "WPT_STAT" and "completed" in str(val)]
+    assert stats == ["behavior-name=waypt_survey,completed", "behavior-name=waypt_return,completed"]
+    posts = {v: val for _, v, val in log}
+    assert posts["MISSION"] == "complete" and posts["DEPLOY"] == "false" and posts["RETURN"] == "false"
+    assert str(posts["SUMMARY"]).startswith("speed=3,time=")
+    assert math.hypot(boat.x - 0, boat.y + 20) < 3
+    assert posts["IVPHELM_ALLSTOP"] == "NothingToDo"
+    assert any(v == "CINFO" for _, v, _ in log) and posts["INFO"] == "BHV_Waypoint"
+    deaths = [val for _, v, val in log if v == "IVPHELM_LIFE_EVENT"]
+    assert deaths == []  # both waypoint behaviours are perpetual
+
+
+def test_park_until_manual_override_false_then_drive(corpus, domain):
+    helm = Helm([read_bhv(corpus / "s1_alpha" / "alpha.bhv")], domain, "alpha")
+    helm.startup(0.0)
+    log = []
+    end = run(helm, Boat(0, -20), 3, log=log)
+    assert {val for _, v, val in log if v == "IVPHELM_STATE"} == {"PARK"}
+    assert [val for _, v, val in log if v == "IVPHELM_ALLSTOP"] == ["ManualOverride"]
+    assert [(v, val) for _, v, val in log if v.startswith("DESIRED")] == [("DESIRED_HEADING", 0.0),
+                                                                          ("DESIRED_SPEED", 0.0)]
+    log.clear()
+    run(helm, Boat(0, -20), 5, start=end, pokes={round(end, 2): {"MOOS_MANUAL_OVERRIDE": "false",
+                                                                 "DEPLOY": "true"}}, log=log)
+    assert [val for _, v, val in log if v == "IVPHELM_ALLSTOP"][-1] == "clear"
+    assert any(v == "DESIRED_HEADING" and val > 90 for _, v, val in log)
+
+
+def test_nothing_to_do_quirk_posts_twice_then_zeros(domain):
+    helm = Helm([bhv_of("initialize DEPLOY = false\nBehavior = BHV_ConstantSpeed\n{\n condition = DEPLOY = true\n"
+                        " speed = 1\n}\n")], domain, "v", active_start=True)
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 3, log=log)
+    allstops = [(t, val) for t, v, val in log if v == "IVPHELM_ALLSTOP"]
+    assert [val for _, val in allstops] == ["NothingToDo", "NothingToDo"]
+    zeros = [t for t, v, _ in log if v == "DESIRED_SPEED"]
+    assert zeros == [allstops[1][0]]
+
+
+SK_BHV = """
+initialize DEPLOY = false, RETURN = false
+initialize STATION_KEEP = true
+set MODE = ACTIVE {
+  DEPLOY = true
+} INACTIVE
+set MODE = STATION-KEEPING {
+  MODE = ACTIVE
+  STATION_KEEP = true
+}
+set MODE = RETURNING {
+  MODE = ACTIVE
+  RETURN = true
+}
+Behavior = BHV_StationKeep
+{
+  name = station-keep
+  condition = MODE==STATION-KEEPING
+  activeflag = STATIONING = true
+  inactiveflag = STATIONING = false
+  station_pt = 20,-20
+  inner_radius = 5
+  outer_radius = 10
+  outer_speed = 1.0
+  transit_speed = 1.3
+}
+Behavior = BHV_Waypoint
+{
+  name = waypt_return
+  condition = MODE==RETURNING
+  points = 0,0
+  speed = 2
+}
+"""
+
+
+def test_modes_follow_the_set_entries(domain):
+    helm = Helm([bhv_of(SK_BHV)], domain, "v", active_start=True)
+    posts = helm.startup(0.0)
+    assert ("IVPHELM_MODESET", "MODE=ACTIVE#MODE=STATION-KEEPING@ACTIVE#MODE=RETURNING@ACTIVE", "") in posts
+    log = []
+    pokes = {2.0: {"DEPLOY": "true"}, 4.0: {"STATION_KEEP": "false", "RETURN": "true"}}
+    run(helm, Boat(), 6, pokes=pokes, log=log)
+    assert [val for _, v, val in log if v == "MODE"] == ["INACTIVE", "ACTIVE:STATION-KEEPING", "ACTIVE:RETURNING"]
+    assert [val for _, v, val in log if v == "STATIONING"] == ["false", "true", "false"]
+
+
+def test_station_keep_settles_inside_outer_radius_under_current(domain):
+    helm = Helm([bhv_of(SK_BHV)], domain, "v", active_start=True)
+    helm.startup(0.0)
+    boat, log = Boat(-40, 30, 90, current=(0.3, -0.2)), []
+    run(helm, boat, 300, pokes={1.0: {"DEPLOY": "true"}}, log=log)
+    late = [math.hypot(x - 20, y + 20) for t, v, (x, y) in ((t, v, val) for t, v, val in log if v == "POS")
+            if t > 150]
+    assert max(late) < 10
+    dists = [val for t, v, val in log if v == "DIST_TO_STATION"]
+    assert dists[0] > 60
+
+
+def test_unknown_behavior_type_is_a_startup_error(domain):
+    with pytest.raises(MissionFileError, match=r"t.bhv:1: unknown behavior type 'BHV_Loiter'"):
+        Helm([bhv_of("Behavior = BHV_Loiter\n{\n speed = 1\n}\n")], domain)
+    with pytest.raises(MissionFileError, match=r"t.bhv:3: .*unknown parameter 'spede'"):
+        Helm([bhv_of("Behavior = BHV_Waypoint\n{\n spede = 1\n}\n")], domain)
