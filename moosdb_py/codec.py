@@ -11,7 +11,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable
 
-from .message import BINARY, DATA_TYPES, MSG_TYPES, MOOSMsg
+from .message import BINARY, MSG_TYPES, WIRE_DATA_TYPES, MOOSMsg
 
 PROTOCOL_NAME = b"ELKS CAN'T DANCE 2/8/10"
 PROTOCOL_SLOT_SIZE = 32
@@ -67,7 +67,7 @@ def decode_message(buf: bytes, pos: int = 0, *, keep_wire: bool = False) -> tupl
     msg_type, data_type = mtype.decode("latin-1"), dtype.decode("latin-1")
     if msg_type not in MSG_TYPES:
         raise CodecError(f"unknown message type {msg_type!r} at byte {pos}")
-    if data_type not in DATA_TYPES:
+    if data_type not in WIRE_DATA_TYPES:
         raise CodecError(f"unknown data type {data_type!r} at byte {pos}")
     p = pos + 10
     strings = []
@@ -152,40 +152,50 @@ class FramingError(ValueError):
 class StreamFramer:
     """Split a TCP byte stream into protocol slot and packets, however the bytes were chunked.
 
-    `feed` returns every unit completed by the new bytes; a length header outside
+    `feed` buffers bytes; `next_unit` returns the next complete unit or None (h11 style, so the
+    caller can stop mid-buffer, e.g. after a bad protocol slot). A length header outside
     [9, max_packet] raises `FramingError` as soon as its 4 bytes are in, before any allocation.
     """
 
     def __init__(self, *, protocol_slot: bool = False, max_packet: int = DEFAULT_MAX_PACKET):
         self._buf = bytearray()
+        self._pos = 0
         self._need_slot = protocol_slot
         self.max_packet = max_packet
 
     @property
     def buffered(self) -> int:
-        return len(self._buf)
+        return len(self._buf) - self._pos
 
-    def feed(self, data: bytes) -> list[bytes]:
-        buf = self._buf
-        buf += data
-        out: list[bytes] = []
-        pos = 0
-        avail = len(buf)
+    def feed(self, data: bytes) -> None:
+        if self._pos:
+            del self._buf[:self._pos]
+            self._pos = 0
+        self._buf += data
+
+    def next_unit(self) -> bytes | None:
+        buf, pos = self._buf, self._pos
+        avail = len(buf) - pos
         if self._need_slot:
             if avail < PROTOCOL_SLOT_SIZE:
-                return out
-            out.append(bytes(buf[:PROTOCOL_SLOT_SIZE]))
-            pos = PROTOCOL_SLOT_SIZE
+                return None
             self._need_slot = False
-        unpack = _INT.unpack_from
-        while avail - pos >= 4:
-            (total,) = unpack(buf, pos)
-            if total < PACKET_HEADER_SIZE or total > self.max_packet:
-                raise FramingError(f"packet length {total} outside [{PACKET_HEADER_SIZE}, {self.max_packet}]")
-            if avail - pos < total:
-                break
-            out.append(bytes(buf[pos:pos + total]))
-            pos += total
-        if pos:
-            del buf[:pos]
+            self._pos = pos + PROTOCOL_SLOT_SIZE
+            return bytes(buf[pos:self._pos])
+        if avail < 4:
+            return None
+        (total,) = _INT.unpack_from(buf, pos)
+        if total < PACKET_HEADER_SIZE or total > self.max_packet:
+            raise FramingError(f"packet length {total} outside [{PACKET_HEADER_SIZE}, {self.max_packet}]")
+        if avail < total:
+            return None
+        self._pos = pos + total
+        return bytes(buf[pos:self._pos])
+
+    def units(self, data: bytes) -> list[bytes]:
+        """Feed `data` and return every unit it completes."""
+        self.feed(data)
+        out = []
+        while (unit := self.next_unit()) is not None:
+            out.append(unit)
         return out

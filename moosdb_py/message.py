@@ -26,6 +26,7 @@ DOUBLE = "D"
 STRING = "S"
 BINARY = "B"
 DATA_TYPES = frozenset("DSB")
+WIRE_DATA_TYPES = DATA_TYPES | {NOT_SET}   # a C++ DB answers ALL with '~' for never-written variables
 
 SERVER_REQUEST_ID = -2
 ASYNC_TIMING_KEY = "_async_timing"

@@ -35,9 +35,9 @@ def test_captured_streams_split_into_captured_units(chunks, units):
     if len(complete) < len(units):
         # scenario 11, conn 3: no protocol slot, so what follows the first 32 bytes is garbage
         with pytest.raises(codec.FramingError):
-            framer.feed(stream)
+            framer.units(stream)
         return
-    got = [u for chunk in chunks for u in framer.feed(chunk)]
+    got = [u for chunk in chunks for u in framer.units(chunk)]
     assert got == [_expected(u) for u in complete]
     assert framer.buffered == 0
 
@@ -47,10 +47,10 @@ def test_captured_streams_split_into_captured_units(chunks, units):
 def test_any_chunking_gives_the_same_packets(cuts):
     cap = load_capture(conformance_files()[6])
     stream = b"".join(bytes.fromhex(c["hex"]) for c in cap["chunks"] if c["conn"] == 2 and c.get("dir") == "c2s")
-    whole = codec.StreamFramer(protocol_slot=True).feed(stream)
+    whole = codec.StreamFramer(protocol_slot=True).units(stream)
     framer = codec.StreamFramer(protocol_slot=True)
     edges = sorted({0, len(stream), *(c % (len(stream) + 1) for c in cuts)})
-    got = [u for a, b in zip(edges, edges[1:]) for u in framer.feed(stream[a:b])]
+    got = [u for a, b in zip(edges, edges[1:]) for u in framer.units(stream[a:b])]
     assert got == whole and len(whole) > 3
 
 
@@ -58,4 +58,4 @@ def test_any_chunking_gives_the_same_packets(cuts):
 def test_absurd_lengths_are_refused_before_buffering(length):
     framer = codec.StreamFramer(max_packet=1_000_000)
     with pytest.raises(codec.FramingError, match=str(length)):
-        framer.feed(length.to_bytes(4, "little", signed=True))
+        framer.units(length.to_bytes(4, "little", signed=True))

@@ -1,0 +1,79 @@
+"""The `moosdb` command: real processes on loopback ports, talked to with raw sockets."""
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+
+from conftest import free_port, start_moosdb
+from moosdb_py import codec
+from moosdb_py.message import MOOSMsg
+
+
+class RawClient:
+    """A blocking client speaking the wire protocol directly (no moosdb_py client involved)."""
+
+    def __init__(self, port: int, name: str, asynchronous: bool = True):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+        self.framer = codec.StreamFramer()
+        hello = MOOSMsg("i", "S", "asynchronous" if asynchronous else "", string=name, time=time.time())
+        self.sock.sendall(codec.PROTOCOL_SLOT + codec.encode_packet([hello]))
+        self.pending: list[bytes] = []
+
+    def packet(self) -> list[MOOSMsg]:
+        while not self.pending:
+            data = self.sock.recv(65536)
+            if not data:
+                raise ConnectionError("closed by the DB")
+            self.pending.extend(self.framer.units(data))
+        return codec.decode_packet(self.pending.pop(0))
+
+    def send(self, *msgs: MOOSMsg) -> None:
+        self.sock.sendall(codec.encode_packet(msgs))
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def test_welcome_from_default_db(moosdb_server):
+    client = RawClient(moosdb_server.port, "hello")
+    (welcome,) = client.packet()
+    assert (welcome.msg_type, welcome.community, welcome.string) == ("W", "#1", "asynchronous")
+    assert welcome.source_aux == f"hostname={socket.gethostname()}"
+    assert abs(welcome.time - time.time()) < 5
+    client.close()
+
+
+def test_mission_file_and_flags(tmp_path):
+    port = free_port()
+    mission = tmp_path / "m.moos"
+    mission.write_text(f"ServerHost = localhost\nServerPort = {port}\nCommunity = alpha\nMOOSTimeWarp = 10\n")
+    db = start_moosdb(str(mission), port=port)
+    try:
+        client = RawClient(port, "c")
+        (welcome,) = client.packet()
+        assert welcome.community == "alpha"
+        assert abs(welcome.time / 10 - time.time()) < 5    # MOOS time is warped
+        client.send(MOOSMsg("Q", "S", "VAR_SUMMARY", id=-2, source="c"))
+        (summary,) = client.packet()
+        assert summary.source == "MOOSDB_alpha" and "DB_CLIENTS" in summary.string
+        client.close()
+    finally:
+        db.stop()
+    db = start_moosdb(str(mission), "--moos_community=beta", port=port)
+    try:
+        client = RawClient(port, "c")
+        assert client.packet()[0].community == "beta"
+        client.close()
+    finally:
+        db.stop()
+
+
+def test_help_and_bad_mission(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "moosdb_py.moosdb", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "--moos_port" in out.stdout and "127.0.0.1" in out.stdout
+    bad = tmp_path / "bad.moos"
+    bad.write_text("ServerPort = not_a_port\n")
+    out = subprocess.run([sys.executable, "-m", "moosdb_py.moosdb", str(bad)], capture_output=True, text=True)
+    assert out.returncode == 1 and "bad.moos:1" in out.stderr
