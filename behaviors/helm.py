@@ -262,7 +262,7 @@ class Helm:
     def _apply_update_string(self, bhv: IvPBehavior, text: str) -> str:
         pairs = [p.partition("=") for p in text.split("#") if p.strip()]
         for key, _, value in pairs:
-            if key.strip().lower() == "name" and value.strip() != bhv.spawn_suffix or bhv.name:
+            if key.strip().lower() == "name" and value.strip() != (bhv.spawn_suffix or bhv.name):
                 return "name_mismatch"
         bad = []
         for key, sep, value in pairs:

@@ -18,3 +18,14 @@ def corpus() -> Path:
 @pytest.fixture
 def domain() -> IvPDomain:
     return IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
+
+
+@pytest.fixture
+def make_bhv():
+    """Parse .bhv text given inline (file name t.bhv)."""
+    from moosdb_py.source import SourceLine
+    from behaviors.bhv_file import parse_bhv
+
+    def make(text: str):
+        return parse_bhv([SourceLine(t, Path("t.bhv"), i) for i, t in enumerate(text.splitlines(), 1)])
+    return make
