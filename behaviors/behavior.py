@@ -27,6 +27,9 @@ class InfoBuffer:
         self.values: dict[str, Value] = {}
         self.times: dict[str, float] = {}
         self.deltas: dict[str, list[Value]] = {}
+        # Only variables whose every post matters (updates, duration resets) keep deltas, so a
+        # parked helm that never clears them does not pile up navigation history.
+        self.delta_vars: set[str] = set()
 
     def set(self, var: str, value: Value, time: float) -> bool:
         """Store a value; a variable keeps the type (double or string) it was first given."""
@@ -37,7 +40,8 @@ class InfoBuffer:
             return False
         self.values[var] = value
         self.times[var] = time
-        self.deltas.setdefault(var, []).append(value)
+        if var in self.delta_vars:
+            self.deltas.setdefault(var, []).append(value)
         return True
 
     def get(self, var: str) -> Value | None:

@@ -74,6 +74,7 @@ class Helm:
                     self.templates[bhv.name] = (spec, bhv)
                 else:
                     self.behaviors.append(bhv)
+        self._track_deltas()
         self.status = "DRIVE" if active_start else "PARK"
         self.iteration = 0
         self.start_time: float | None = None
@@ -87,6 +88,10 @@ class Helm:
         self.bhv_lists: dict[str, str] = {}
         self.first_iteration: set[str] = set()
         self.last_map_clear = -1e9
+
+    def _track_deltas(self) -> None:
+        for bhv in self.behaviors + [t for _, t in self.templates.values()]:
+            self.info.delta_vars.update(v for v in (bhv.updates_var, bhv.duration.reset_var) if v)
 
     # ---- subscriptions and startup ---------------------------------------------------
     def subscriptions(self) -> list[str]:
@@ -112,7 +117,9 @@ class Helm:
         return out
 
     # ---- mail -------------------------------------------------------------------------
-    def on_mail(self, var: str, value: Value, time: float, source: str = "") -> None:
+    def on_mail(self, var: str, value: Value | bytes, time: float, source: str = "") -> None:
+        if isinstance(value, bytes):
+            return  # binary mail means nothing to conditions or behaviours
         if var == "IVPHELM_STATE":
             if source == self.app_name:
                 self.seen_own_state = True
@@ -153,7 +160,6 @@ class Helm:
                     out.append((init.var, init.value, "HELM_VAR_INIT"))
         if self.status == "PARK":
             out += self._allstop("ManualOverride")
-            self.info.clear_deltas()
             return out
         if now - self.start_time < 1.0:
             return out

@@ -168,3 +168,14 @@ def test_unknown_behavior_type_is_a_startup_error(domain):
         Helm([bhv_of("Behavior = BHV_Loiter\n{\n speed = 1\n}\n")], domain)
     with pytest.raises(MissionFileError, match=r"t.bhv:3: .*unknown parameter 'spede'"):
         Helm([bhv_of("Behavior = BHV_Waypoint\n{\n spede = 1\n}\n")], domain)
+
+
+def test_updates_posted_while_parked_apply_once_driving(domain, make_bhv):
+    helm = Helm([make_bhv("Behavior = BHV_Waypoint\n{\n name = w\n updates = WU\n points = 0,50\n speed = 1\n}\n")],
+                domain, "v")
+    helm.startup(0.0)
+    log = []
+    end = run(helm, Boat(), 3, log=log, pokes={1.0: {"WU": "speed=2.5"}})
+    run(helm, Boat(), 3, start=end, log=log, pokes={round(end, 2): {"MOOS_MANUAL_OVERRIDE": "false"}})
+    assert any(v == "IVPHELM_UPDATE_RESULT" and "result=success" in val for _, v, val in log)
+    assert [val for _, v, val in log if v == "DESIRED_SPEED"][-1] == 2.5
