@@ -9,7 +9,10 @@ mean, so it never changes what the mean head learns from the paper's loss.
 """
 from __future__ import annotations
 
+import argparse
 import copy
+import hashlib
+import json
 import random
 import time
 from dataclasses import asdict, dataclass, field
@@ -20,6 +23,7 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
+from . import features as F
 from .models import KINDS, ModelConfig, SpillForecaster
 
 # kind -> (learning rate, alpha, early-stopping patience in epochs). LTC values are the paper's;
@@ -50,6 +54,37 @@ class WindowTensors:
 
     def __len__(self) -> int:
         return len(self.x)
+
+
+@dataclass
+class DeltaScaler:
+    """Targets as scaled changes from the last observed value, per horizon and target.
+
+    The models forecast ``(y[h] - y_last - mean[h]) / std[h]``: zero is persistence, so the networks
+    learn the spill's motion and growth, not its position in the Gulf, and no target is clipped.
+    """
+
+    mean: np.ndarray          # [H, K]
+    std: np.ndarray           # [H, K]
+
+    @classmethod
+    def fit(cls, last: np.ndarray, targets: np.ndarray) -> "DeltaScaler":
+        delta = np.asarray(targets, float) - np.asarray(last, float)[:, None, :]
+        std = delta.std(axis=0)
+        return cls(mean=delta.mean(axis=0), std=np.where(std > 1e-9, std, 1.0))
+
+    def transform(self, last: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        return (np.asarray(targets, float) - np.asarray(last, float)[:, None, :] - self.mean) / self.std
+
+    def inverse_transform(self, last: np.ndarray, scaled: np.ndarray) -> np.ndarray:
+        return np.asarray(scaled, float) * self.std + self.mean + np.asarray(last, float)[:, None, :]
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean.tolist(), "std": self.std.tolist()}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "DeltaScaler":
+        return cls(mean=np.asarray(data["mean"], float), std=np.asarray(data["std"], float))
 
 
 @dataclass
@@ -189,3 +224,120 @@ def load_checkpoint(path: Path) -> tuple[SpillForecaster, dict]:
     model.load_state_dict(blob["state_dict"])
     model.eval()
     return model, blob
+
+
+# ---------------------------------------------------------------------------------------------------
+# From scenarios to model-ready tensors
+
+@dataclass
+class Prepared:
+    """Windows of one split with the scalers fitted on the training split."""
+
+    windows: F.Windows
+    tensors: WindowTensors
+    scenario_ids: list[str]
+
+
+def scenario_windows(scenarios, multipolygon: str = "largest") -> F.Windows:
+    """Hourly 16-step windows (paper: hourly sequences over the first 48 h) of a list of scenarios."""
+    return F.make_windows([s.sequence(multipolygon) for s in scenarios], scale="hourly")
+
+
+def fit_scalers(train_windows: F.Windows) -> tuple[F.FeatureScaler, DeltaScaler]:
+    feature_scaler = F.FeatureScaler.fit(train_windows.inputs)
+    last = train_windows.inputs[:, -1, list(F.TARGET_INDICES)]
+    return feature_scaler, DeltaScaler.fit(last, train_windows.targets)
+
+
+def to_tensors(windows: F.Windows, feature_scaler: F.FeatureScaler, delta_scaler: DeltaScaler) -> WindowTensors:
+    last = windows.inputs[:, -1, list(F.TARGET_INDICES)]
+    return WindowTensors(feature_scaler.transform(windows.inputs), windows.elapsed_h,
+                         delta_scaler.transform(last, windows.targets))
+
+
+def prepare(scenarios, feature_scaler, delta_scaler, multipolygon="largest") -> Prepared:
+    windows = scenario_windows(scenarios, multipolygon)
+    return Prepared(windows, to_tensors(windows, feature_scaler, delta_scaler), [s.scenario_id for s in scenarios])
+
+
+# ---------------------------------------------------------------------------------------------------
+# The `train` command
+
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+
+
+def file_sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0,
+                 progress: bool = True, adaptive_fused: bool = False, **overrides) -> dict:
+    """Train each kind on the same split and scalers; write ``<kind>.pt`` and ``metrics.json``."""
+    from . import dataset as D
+
+    scenarios = D.load_dataset(dataset_stem)
+    split = D.split_scenarios(scenarios, seed=split_seed)
+    train_windows = scenario_windows(split.train)
+    feature_scaler, delta_scaler = fit_scalers(train_windows)
+    train_t = to_tensors(train_windows, feature_scaler, delta_scaler)
+    val_t = prepare(split.val, feature_scaler, delta_scaler).tensors
+    stem = Path(dataset_stem) if dataset_stem is not None else D.DEFAULT_STEM
+    extra = {"feature_scaler": feature_scaler.to_dict(), "delta_scaler": delta_scaler.to_dict(),
+             "target_names": list(F.TARGET_NAMES), "horizons_h": list(F.HORIZONS_H), "multipolygon": "largest",
+             "split_seed": split_seed, "split": split.ids(),
+             "dataset": {"file": stem.with_suffix(".npz").name,
+                         "sha256": file_sha256(stem.with_suffix(".npz"))}}
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    metrics_path = out_dir / "metrics.json"
+    record = json.loads(metrics_path.read_text()) if metrics_path.exists() else {}
+    area_targets = tuple(i for i, n in enumerate(F.TARGET_NAMES) if "area" in n)
+    for kind in kinds:
+        cfg = TrainConfig(kind=kind, area_targets=area_targets, adaptive=adaptive_fused and kind == "ltc-fused",
+                          **overrides)
+        started = time.perf_counter()
+        model, history = fit(train_t, val_t, cfg, horizons_h=F.HORIZONS_H, checkpoint=out_dir / f"{kind}.pt",
+                             extra=extra, progress=progress)
+        best = min(history, key=lambda h: h["val"]["loss"] - cfg.nll_weight * h["val"]["nll"])
+        record[kind] = {"train_config": asdict(cfg), "epochs_run": len(history), "best_epoch": best["epoch"],
+                        "val_at_best": best["val"], "train_loss_at_best": best["train_loss"],
+                        "train_seconds": round(time.perf_counter() - started, 1),
+                        "n_params": sum(p.numel() for p in model.parameters()),
+                        "train_windows": len(train_t), "val_windows": len(val_t),
+                        "dataset": extra["dataset"], "split_seed": split_seed}
+        metrics_path.write_text(json.dumps(record, indent=1) + "\n")
+        if progress:
+            print(f"{kind}: best epoch {best['epoch']} of {len(history)}, val MSE {best['val']['mse']:.4f}, "
+                  f"{record[kind]['train_seconds']} s -> {out_dir / (kind + '.pt')}")
+    return record
+
+
+def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    parser = parser or argparse.ArgumentParser(prog="oilspill-forecaster train")
+    parser.description = "Train the LTC and LSTM forecasters on the committed OpenOil scenarios (CPU)."
+    parser.add_argument("--model", action="append", choices=KINDS,
+                        help="model to train (repeatable; default: all four)")
+    parser.add_argument("--dataset", type=Path, help="dataset stem (default: the committed set)")
+    parser.add_argument("--out", type=Path, default=WEIGHTS_DIR, help="weights directory (default: %(default)s)")
+    parser.add_argument("--epochs", type=int, default=TrainConfig.epochs)
+    parser.add_argument("--batch-size", type=int, default=TrainConfig.batch_size)
+    parser.add_argument("--seed", type=int, default=TrainConfig.seed)
+    parser.add_argument("--split-seed", type=int, default=0)
+    parser.add_argument("--hidden", type=int, default=TrainConfig.hidden)
+    parser.add_argument("--unfolds", type=int, default=TrainConfig.unfolds)
+    parser.add_argument("--adaptive", action="store_true", help="adaptive step for the ltc-fused model")
+    parser.add_argument("--threads", type=int, default=TrainConfig.threads)
+    parser.add_argument("--max-minutes", type=float, help="wall-clock cap per model")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def main(argv=None, args: argparse.Namespace | None = None) -> int:
+    args = args or build_parser().parse_args(argv)
+    kinds = args.model or list(KINDS)
+    overrides = {"epochs": args.epochs, "batch_size": args.batch_size, "seed": args.seed, "hidden": args.hidden,
+                 "unfolds": args.unfolds, "threads": args.threads,
+                 "max_seconds": None if args.max_minutes is None else 60 * args.max_minutes}
+    train_models(kinds, dataset_stem=args.dataset, out_dir=args.out, split_seed=args.split_seed,
+                 progress=not args.quiet, adaptive_fused=args.adaptive, **overrides)
+    return 0
