@@ -1,0 +1,238 @@
+"""MOOSApp: the life cycle every MOOS application shares (CMOOSApp in C++).
+
+Reads its `ProcessConfig` block from the mission file, connects with a `MOOSClient`, calls
+`on_new_mail` and `iterate` AppTick times per *warped* second, publishes `<NAME>_STATUS` every
+two seconds and listens to `<NAME>_CMD`. `main` gives every app the MOOS command line.
+"""
+from __future__ import annotations
+
+import asyncio
+import inspect
+import logging
+import os
+import resource
+import signal
+import sys
+import time as _time
+from pathlib import Path
+
+from .client import MOOSClient
+from .message import MOOSMsg
+from .mission import Mission, ProcessConfig, Where, read_mission
+from .source import MissionFileError
+
+log = logging.getLogger("moosdb_py.app")
+
+DEFAULT_APP_TICK = 5.0
+DEFAULT_COMMS_TICK = 5.0
+STATUS_PERIOD = 2.0
+USAGE_OPTIONS = """\
+Options:
+  --alias=NAME, --moos_name=NAME   MOOS name (and ProcessConfig block) to use
+  --moos_host=HOST                 DB host (default: ServerHost, else 127.0.0.1)
+  --moos_port=PORT                 DB port (default: ServerPort, else 9000)
+  --moos_time_warp=WARP            time warp (default: MOOSTimeWarp, else 1)
+  --verbose                        log connections and warnings
+  --help, --example, --interface   this text / a ProcessConfig block / variables used"""
+
+
+class MOOSApp:
+    """A MOOS application (subclasses replace this docstring: it is their --help text)."""
+
+    default_name = "pMyApp"
+    example_config = ""
+    interface = ""
+
+    def __init__(self, mission_file: str | Path | None = None, name: str | None = None, *,
+                 host: str | None = None, port: int | None = None, time_warp: float | None = None):
+        self.name = name or self.default_name
+        self.mission: Mission | None = read_mission(mission_file) if mission_file else None
+        self.config: ProcessConfig = self._find_config()
+        mission = self.mission
+        self.time_warp = time_warp or (mission.time_warp if mission else 1.0)
+        host = host or (mission.server_host if mission else "127.0.0.1")
+        port = port or (mission.server_port if mission else 9000)
+        self.app_tick = self._positive("AppTick", DEFAULT_APP_TICK)
+        self.comms_tick = self._positive("CommsTick", DEFAULT_COMMS_TICK)   # read as MOOS does; async comms ignore it
+        self.command_key = f"{self.name.upper()}_CMD"
+        self.client = MOOSClient(self.name, "127.0.0.1" if host == "localhost" else host, port,
+                                 on_mail=self._on_mail, on_connect=self._on_connect, time_warp=self.time_warp)
+        self.start_time = self.moos_time()
+        self.iterations = 0
+        self.app_error = False
+        self._started_mono = _time.monotonic()
+        self._mail: list[MOOSMsg] = []
+        self._stop: asyncio.Event | None = None
+        self._stopping = False
+
+    def _find_config(self) -> ProcessConfig:
+        """The block named by the alias, else by the app's own name (MOOS-IvP's `~` aliases)."""
+        found = None
+        if self.mission is not None:
+            found = self.mission.process_config(self.name) or self.mission.process_config(self.default_name)
+        where = Where(file=self.mission.path if self.mission else Path("<no mission file>"), line=0)
+        return found or ProcessConfig(name=self.name, entries=[], source=where)
+
+    def _positive(self, key: str, default: float) -> float:
+        entry = self.config.entry(key)
+        if entry is None:
+            return default
+        try:
+            value = float(entry.moos_value)
+        except ValueError:
+            value = -1.0
+        if value <= 0:
+            raise entry.source.error(f"{key} = {entry.value!r} is not a positive number")
+        return value
+
+    # -- hooks for subclasses ------------------------------------------------------------------
+    def on_startup(self) -> None:
+        """Read the configuration; raise ValueError naming the bad parameter."""
+
+    def on_connect(self) -> None:
+        """Register for mail; called on every (re)connection."""
+
+    def on_new_mail(self, mail: list[MOOSMsg]) -> None:
+        """Mail received since the last tick, in arrival order (`<NAME>_CMD` included)."""
+
+    def iterate(self) -> None:
+        """The app's work, AppTick times per warped second."""
+
+    def status_fields(self) -> dict:
+        """Extra `key=value` fields appended to <NAME>_STATUS."""
+        return {}
+
+    # -- services ------------------------------------------------------------------------------
+    def register(self, key: str, interval: float = 0.0) -> None:
+        self.client.register(key, interval)
+
+    def register_wildcard(self, var_pattern: str, app_pattern: str = "*", interval: float = 0.0) -> None:
+        self.client.register_wildcard(var_pattern, app_pattern, interval)
+
+    def notify(self, key: str, value: float | str | bytes, time: float | None = None, source_aux: str = "") -> None:
+        self.client.notify(key, value, time, source_aux)
+
+    def moos_time(self) -> float:
+        return self.client.moos_time()
+
+    # -- life cycle ----------------------------------------------------------------------------
+    def _on_connect(self) -> None:
+        self.client.register(self.command_key)
+        self.on_connect()
+
+    def _on_mail(self, mail: list[MOOSMsg]) -> None:
+        self._mail.extend(mail)
+
+    def status(self) -> str:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        uptime = self.moos_time() - self.start_time
+        cpu = 100.0 * (usage.ru_utime + usage.ru_stime) / max(_time.monotonic() - self._started_mono, 1e-9)
+        fields = [f"AppErrorFlag={'true' if self.app_error else 'false'}", f"Uptime={uptime:g}",
+                  f"cpuload={cpu:.4g}", f"memory_kb={_memory_kb()}", f"memory_max_kb={usage.ru_maxrss:g}",
+                  f"MOOSName={self.name}",
+                  'Publishing="' + "".join(f"{k}," for k in sorted(self.client.published)) + '"',
+                  'Subscribing="' + "".join(f"{k}," for k in sorted(self.client.registrations)) + '"']
+        fields += [f"{k}={v}" for k, v in self.status_fields().items()]
+        return ",".join(fields)
+
+    async def run_async(self) -> None:
+        """Run until `stop()`; several apps can share one event loop."""
+        self._stop = asyncio.Event()
+        if self._stopping:
+            self._stop.set()
+        self._started_mono = _time.monotonic()
+        self.on_startup()
+        comms = asyncio.create_task(self.client.run(), name=f"{self.name} comms")
+        period = 1.0 / (self.app_tick * self.time_warp)
+        try:
+            while not self._stop.is_set() and not await self.client.wait_connected(0.5):
+                if comms.done():
+                    raise ConnectionError(f"{self.name}: {self.client.poisoned or 'cannot connect'}")
+            next_tick = next_status = _time.monotonic()
+            while not self._stop.is_set():
+                mail, self._mail = self._mail, []
+                if mail:
+                    self.on_new_mail(mail)
+                self.iterate()
+                self.iterations += 1
+                now = _time.monotonic()
+                if now >= next_status:
+                    next_status = now + STATUS_PERIOD
+                    self.notify(f"{self.name.upper()}_STATUS", self.status())
+                next_tick = max(next_tick + period, now)
+                try:
+                    async with asyncio.timeout(max(0.0, next_tick - _time.monotonic())):
+                        await self._stop.wait()
+                except TimeoutError:
+                    pass
+        finally:
+            self.client.close()
+            try:
+                async with asyncio.timeout(2.0):
+                    await comms
+            except TimeoutError:
+                comms.cancel()
+
+    def stop(self) -> None:
+        self._stopping = True
+        if self._stop is not None:
+            self._stop.set()
+
+    def run(self) -> None:
+        async def runner():
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.add_signal_handler(sig, self.stop)
+            await self.run_async()
+        asyncio.run(runner())
+
+    # -- command line --------------------------------------------------------------------------
+    @classmethod
+    def usage(cls) -> str:
+        doc = inspect.cleandoc(cls.__doc__ or "")
+        return f"Usage: {cls.default_name} [mission.moos] [alias] [options]\n\n{doc}\n\n{USAGE_OPTIONS}\n"
+
+    @classmethod
+    def main(cls, argv: list[str] | None = None) -> int:
+        """`APP [mission.moos] [alias] [--alias=N] [--moos_host=H] [--moos_port=P] [--help|--example|--interface]`"""
+        argv = sys.argv[1:] if argv is None else list(argv)
+        pages = {"--help": cls.usage, "-h": cls.usage, "--example": lambda: cls.example_config,
+                 "-e": lambda: cls.example_config, "--interface": lambda: cls.interface, "-i": lambda: cls.interface}
+        for arg in argv:
+            if arg in pages:
+                print(inspect.cleandoc(pages[arg]()) if arg not in ("--help", "-h") else pages[arg]())
+                return 0
+        options, positional = {}, []
+        for arg in argv:
+            if arg.startswith("-"):
+                key, _, value = arg.lstrip("-").partition("=")
+                options[key] = value
+            else:
+                positional.append(arg)
+        name = options.pop("alias", None) or options.pop("moos_name", None) or (positional[1] if len(positional) > 1 else None)
+        mission = options.pop("moos_file", None) or (positional[0] if positional else None)
+        logging.basicConfig(level=logging.INFO if "verbose" in options else logging.WARNING,
+                            format=f"%(asctime)s {name or cls.default_name}: %(message)s", stream=sys.stderr)
+        options.pop("verbose", None)
+        try:
+            unknown = sorted(set(options) - {"moos_host", "moos_port", "moos_time_warp"})
+            if unknown or len(positional) > 2:
+                raise ValueError(f"unknown arguments {unknown or positional[2:]} (see --help)")
+            app = cls(mission, name, host=options.get("moos_host") or None,
+                      port=int(options["moos_port"]) if options.get("moos_port") else None,
+                      time_warp=float(options["moos_time_warp"]) if options.get("moos_time_warp") else None)
+            app.run()
+        except (MissionFileError, ValueError, OSError, ConnectionError) as exc:
+            print(f"{name or cls.default_name}: {exc}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt:
+            pass
+        return 0
+
+
+def _memory_kb() -> int:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") // 1024
+    except (OSError, ValueError, IndexError):
+        return 0

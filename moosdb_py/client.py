@@ -1,0 +1,257 @@
+"""An asyncio MOOS client (the V10 asynchronous kind), usable against this DB or the C++ MOOSDB.
+
+Like `MOOS::MOOSAsyncCommClient`: it sends when it has mail (prefixed by a timing message at most
+once a second, and at least once a second to stay alive), the DB pushes mail to it, and it
+reconnects every second after a lost connection, re-applying its subscriptions.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import time as _time
+from collections.abc import Callable
+
+from . import codec
+from .message import (ASYNC_TIMING_KEY, DATA, NULL_MSG, POISON, REGISTER, SERVER_REQUEST, SERVER_REQUEST_ID,
+                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg, moos_time)
+
+log = logging.getLogger("moosdb_py.client")
+
+OUTBOX_LIMIT = 65536        # unsent messages kept; beyond it the oldest half goes, as the C++ client does
+TIMING_PERIOD = 1.0
+HANDSHAKE_TIMEOUT = 5.0
+
+
+class Poisoned(ConnectionError):
+    """The DB refused this client (e.g. its name is taken); MOOS clients then stop trying."""
+
+
+class MOOSClient:
+    """Connect, handshake, register, notify, receive mail; reconnects by itself until `close()`.
+
+    `on_mail(list[MOOSMsg])` and `on_connect()` run in the event loop. Without `on_mail`, mail
+    collects for `fetch()`.
+    """
+
+    reconnect_interval = 1.0
+
+    def __init__(self, name: str, host: str = "127.0.0.1", port: int = 9000, *,
+                 on_mail: Callable[[list[MOOSMsg]], None] | None = None,
+                 on_connect: Callable[[], None] | None = None, time_warp: float = 1.0):
+        self.name, self.host, self.port = name, host, port
+        self.on_mail, self.on_connect = on_mail, on_connect
+        self.time_warp = time_warp
+        self.connected = False
+        self.community = ""
+        self.db_hostname = ""
+        self.poisoned: str | None = None
+        self.registrations: dict[str, float] = {}
+        self.wildcards: dict[tuple[str, str], float] = {}
+        self.published: set[str] = set()
+        self.inbox: list[MOOSMsg] = []
+        self.messages_sent = self.messages_read = 0
+        self._applied: dict[object, float] = {}
+        self._outbox: list[MOOSMsg] = []
+        self._next_id = 0
+        self._closing = False
+        self._wake: asyncio.Event | None = None
+        self._connected_event: asyncio.Event | None = None
+        self._closed_event: asyncio.Event | None = None
+
+    def moos_time(self) -> float:
+        return moos_time(self.time_warp)
+
+    # -- life cycle ----------------------------------------------------------------------------
+    async def run(self) -> None:
+        """Connect and serve until `close()` (or a poison from the DB)."""
+        self._wake, self._connected_event, self._closed_event = asyncio.Event(), asyncio.Event(), asyncio.Event()
+        while not self._closing:
+            try:
+                reader, writer = await asyncio.open_connection(self.host, self.port)
+            except OSError as exc:
+                log.debug("%s: cannot connect to %s:%d: %s", self.name, self.host, self.port, exc)
+            else:
+                try:
+                    await self._session(reader, writer)
+                except Poisoned as exc:
+                    self.poisoned = str(exc)
+                    log.error("%s: refused by the DB: %s", self.name, exc)
+                    break
+                except (OSError, EOFError, TimeoutError, codec.CodecError, codec.FramingError) as exc:
+                    if not self._closing:
+                        log.warning("%s: connection to %s:%d lost: %s", self.name, self.host, self.port, exc)
+                finally:
+                    self._disconnected(writer)
+            if not self._closing:
+                try:
+                    async with asyncio.timeout(self.reconnect_interval):
+                        await self._closed_event.wait()
+                except TimeoutError:
+                    pass
+        self._closed_event.set()
+
+    async def wait_connected(self, timeout: float) -> bool:
+        while self._connected_event is None:          # run() not started yet
+            await asyncio.sleep(0.005)
+            timeout -= 0.005
+        try:
+            async with asyncio.timeout(max(timeout, 0.0)):
+                await self._connected_event.wait()
+        except TimeoutError:
+            pass
+        return self.connected
+
+    def close(self) -> None:
+        """Send what is queued, then disconnect and stop reconnecting."""
+        self._closing = True
+        if self._wake is not None:
+            self._wake.set()
+            self._closed_event.set()
+
+    def _disconnected(self, writer: asyncio.StreamWriter) -> None:
+        self.connected = False
+        self._connected_event.clear()
+        writer.close()
+
+    # -- one connection ------------------------------------------------------------------------
+    async def _session(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        hello = MOOSMsg(DATA, STRING, "asynchronous", string=self.name, time=self.moos_time())
+        writer.write(codec.PROTOCOL_SLOT + codec.encode_packet([hello]))
+        framer = codec.StreamFramer()
+        async with asyncio.timeout(HANDSHAKE_TIMEOUT):
+            while (packet := framer.next_unit()) is None:
+                data = await reader.read(65536)
+                if not data:
+                    raise EOFError("DB closed the connection during the handshake (bad protocol?)")
+                framer.feed(data)
+        reply = codec.decode_packet(packet)
+        if reply and reply[0].msg_type == POISON:
+            raise Poisoned(reply[0].string)
+        if not reply or reply[0].msg_type != WELCOME:
+            raise codec.CodecError(f"expected a welcome, got {reply[0] if reply else 'an empty packet'}")
+        self.community = reply[0].community
+        self.db_hostname = reply[0].source_aux.partition("=")[2]
+        self.connected = True
+        self._applied.clear()
+        self._apply_subscriptions()
+        self._connected_event.set()
+        log.info("%s: connected to %s:%d (community %s)", self.name, self.host, self.port, self.community)
+        if self.on_connect:
+            self.on_connect()
+        writing = asyncio.create_task(self._write_loop(writer))
+        try:
+            self._deliver(framer)
+            while True:
+                data = await reader.read(262144)
+                if not data:
+                    if self._closing:
+                        return
+                    raise EOFError("DB closed the connection")
+                framer.feed(data)
+                self._deliver(framer)
+        finally:
+            writing.cancel()
+
+    async def _write_loop(self, writer: asyncio.StreamWriter) -> None:
+        last_timing = -1e300
+        wake = self._wake
+        while True:
+            delay = last_timing + TIMING_PERIOD - _time.monotonic()
+            if delay > 0 and not self._outbox and not self._closing:
+                try:
+                    async with asyncio.timeout(delay):
+                        await wake.wait()
+                except TimeoutError:
+                    pass
+            wake.clear()
+            msgs, self._outbox = self._outbox, []
+            mono = _time.monotonic()
+            if mono - last_timing >= TIMING_PERIOD:
+                last_timing = mono
+                msgs.insert(0, MOOSMsg(TIMING, "D", ASYNC_TIMING_KEY, 0.0, time=self.moos_time()))
+            if msgs:
+                writer.write(codec.encode_packet(msgs))
+                self.messages_sent += len(msgs)
+                await writer.drain()
+            if self._closing and not self._outbox:
+                writer.close()
+                return
+
+    def _deliver(self, framer: codec.StreamFramer) -> None:
+        mail = []
+        while (packet := framer.next_unit()) is not None:
+            mail.extend(m for m in codec.decode_packet(packet) if m.msg_type not in (TIMING, NULL_MSG))
+        if not mail:
+            return
+        self.messages_read += len(mail)
+        if self.on_mail is not None:
+            self.on_mail(mail)
+        else:
+            self.inbox.extend(mail)
+
+    # -- posting -------------------------------------------------------------------------------
+    def _post(self, msg: MOOSMsg) -> None:
+        if msg.id != SERVER_REQUEST_ID:
+            msg.id = self._next_id
+            self._next_id += 1
+        msg.source = self.name
+        outbox = self._outbox
+        outbox.append(msg)
+        if len(outbox) > OUTBOX_LIMIT:
+            log.warning("%s: outbox over %d messages, dropping the oldest half", self.name, OUTBOX_LIMIT)
+            del outbox[:len(outbox) // 2]
+        if self._wake is not None:
+            self._wake.set()
+
+    def _apply_subscriptions(self) -> None:
+        for key, interval in self.registrations.items():
+            self._send_register(key, interval)
+        for (var, app), interval in self.wildcards.items():
+            self._send_wildcard(var, app, interval)
+
+    def _send_register(self, key: str, interval: float) -> None:
+        if self.connected and self._applied.get(key) != interval:
+            self._applied[key] = interval
+            self._post(MOOSMsg(REGISTER, "D", key, float(interval), time=self.moos_time()))
+
+    def _send_wildcard(self, var: str, app: str, interval: float) -> None:
+        if self.connected and self._applied.get((var, app)) != interval:
+            self._applied[(var, app)] = interval
+            self._post(MOOSMsg(WILDCARD_REGISTER, STRING, self.name, time=self.moos_time(),
+                               string=f"AppPattern={app},VarPattern={var},Interval={interval:g}"))
+
+    def register(self, key: str, interval: float = 0.0) -> None:
+        """Subscribe (kept across reconnects); registering again with the same interval is a no-op."""
+        self.registrations[key] = interval
+        self._send_register(key, interval)
+
+    def register_wildcard(self, var_pattern: str, app_pattern: str = "*", interval: float = 0.0) -> None:
+        self.wildcards[(var_pattern, app_pattern)] = interval
+        self._send_wildcard(var_pattern, app_pattern, interval)
+
+    def unregister(self, key: str) -> None:
+        self.registrations.pop(key, None)
+        self._applied.pop(key, None)
+        if self.connected:   # also ends a subscription made by a wildcard
+            self._post(MOOSMsg(UNREGISTER, "D", key, 0.0, time=self.moos_time()))
+
+    def notify(self, key: str, value: float | str | bytes, time: float | None = None, source_aux: str = "") -> None:
+        self.published.add(key)
+        self._post(MOOSMsg.notification(key, value, time=self.moos_time() if time is None else time,
+                                        source_aux=source_aux))
+
+    def server_request(self, request: str) -> None:
+        """Ask the DB for ALL, VAR_SUMMARY, PROC_SUMMARY or DB_CLEAR; replies arrive as mail (id -2)."""
+        self._post(MOOSMsg(SERVER_REQUEST, STRING, request, time=self.moos_time(), id=SERVER_REQUEST_ID))
+
+    def fetch(self) -> list[MOOSMsg]:
+        """Mail received since the last fetch (when no `on_mail` callback is set)."""
+        mail, self.inbox = self.inbox, []
+        return mail
+
+    async def flush(self, timeout: float = 5.0) -> None:
+        """Wait until everything queued so far has been handed to the socket."""
+        async with asyncio.timeout(timeout):
+            while self._outbox:
+                await asyncio.sleep(0.001)
+

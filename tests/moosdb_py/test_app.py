@@ -1,0 +1,115 @@
+"""MOOSApp: configuration, life cycle, time warp, status, command line, several apps in one loop."""
+from __future__ import annotations
+
+import asyncio
+import time
+
+from helpers import async_wait_until
+from moosdb_py.app import MOOSApp
+from moosdb_py.client import MOOSClient
+
+
+class Counter(MOOSApp):
+    """pCounter adds `step` to COUNT on every iteration and starts again on COUNTER_RESET."""
+
+    default_name = "pCounter"
+    example_config = """
+        ProcessConfig = pCounter
+        {
+          AppTick = 5   // iterations per (warped) second
+          step    = 1   // added to COUNT on each iteration
+        }"""
+    interface = """
+        SUBSCRIPTIONS: COUNTER_RESET, <NAME>_CMD
+        PUBLICATIONS:  COUNT, <NAME>_STATUS"""
+
+    def on_startup(self):
+        self.step = float(self.config.get("step", "1"))
+        if self.step <= 0:
+            raise ValueError(f"step = {self.step:g} must be positive")
+        self.count = 0.0
+        self.mail = []
+
+    def on_connect(self):
+        self.register("COUNTER_RESET")
+
+    def on_new_mail(self, mail):
+        self.mail.extend(mail)
+        if any(m.key == "COUNTER_RESET" for m in mail):
+            self.count = 0.0
+
+    def iterate(self):
+        self.count += self.step
+        self.notify("COUNT", self.count)
+
+    def status_fields(self):
+        return {"count": f"{self.count:g}"}
+
+
+def _mission(tmp_path, port, body="AppTick = 10\n  step = 2", warp=10):
+    path = tmp_path / "counter.moos"
+    path.write_text(f"ServerHost = localhost\nServerPort = {port}\nMOOSTimeWarp = {warp}\n\n"
+                    f"ProcessConfig = counter2\n{{\n  {body}\n}}\n")
+    return path
+
+
+def test_app_life_cycle_under_time_warp(moosdb_server, tmp_path):
+    async def scenario():
+        app = Counter(_mission(tmp_path, moosdb_server.port), "counter2")
+        assert (app.app_tick, app.time_warp, app.config.get("STEP")) == (10.0, 10.0, "2")
+        watcher = MOOSClient("watcher", port=moosdb_server.port, time_warp=10)
+        watcher.register("COUNT")
+        watcher.register("COUNTER2_STATUS")
+        running = asyncio.create_task(app.run_async())
+        watching = asyncio.create_task(watcher.run())
+        await watcher.wait_connected(5)
+        await async_wait_until(lambda: app.iterations >= 5 and watcher.inbox)
+        start, first = time.monotonic(), app.iterations
+        watcher.notify("COUNTER2_CMD", "hello")
+        watcher.notify("COUNTER_RESET", 1.0)
+        await async_wait_until(lambda: {m.key for m in app.mail} >= {"COUNTER2_CMD", "COUNTER_RESET"})
+        await asyncio.sleep(0.5)     # measuring the iteration rate: 10 per warped second = 100 per second
+        rate = (app.iterations - first) / (time.monotonic() - start)
+        assert 40 <= rate <= 115
+        status = next(m.string for m in watcher.inbox if m.key == "COUNTER2_STATUS")
+        assert "MOOSName=counter2" in status and 'Publishing="COUNT,' in status
+        assert 'Subscribing="COUNTER2_CMD,COUNTER_RESET,"' in status and ",count=" in status
+        count = [m for m in watcher.inbox if m.key == "COUNT"][-1]
+        assert count.source == "counter2" and abs(count.time - time.time() * 10) < 5   # stamped with warped time
+        app.stop()
+        watcher.close()
+        await asyncio.wait_for(asyncio.gather(running, watching), 5)
+    asyncio.run(scenario())
+
+
+def test_several_apps_share_one_event_loop(moosdb_server):
+    async def scenario():
+        apps = [Counter(name=f"counter_{i}", port=moosdb_server.port, time_warp=4) for i in range(3)]
+        tasks = [asyncio.create_task(a.run_async()) for a in apps]
+        await async_wait_until(lambda: all(a.iterations > 3 for a in apps))
+        for a in apps:
+            a.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        assert all(a.count > 3 for a in apps)
+    asyncio.run(scenario())
+
+
+def test_command_line_pages(capsys):
+    assert Counter.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "Usage: pCounter [mission.moos] [alias]" in out and "starts again on COUNTER_RESET" in out
+    assert Counter.main(["--example"]) == 0
+    assert capsys.readouterr().out.startswith("ProcessConfig = pCounter\n{\n  AppTick = 5")
+    assert Counter.main(["x.moos", "--interface"]) == 0
+    assert "PUBLICATIONS:  COUNT" in capsys.readouterr().out
+
+
+def test_bad_configuration_is_reported_with_its_place(tmp_path, capsys):
+    mission = _mission(tmp_path, 9, body="AppTick = fast")
+    assert Counter.main([str(mission), "counter2"]) == 1
+    assert f"{mission}:7: AppTick = 'fast' is not a positive number" in capsys.readouterr().err
+    mission = _mission(tmp_path, 9, body="step = -1")
+    assert Counter.main([str(mission), "--alias=counter2"]) == 1
+    assert "step = -1 must be positive" in capsys.readouterr().err
+    assert Counter.main(["--bogus"]) == 1
+    assert "unknown arguments ['bogus']" in capsys.readouterr().err
