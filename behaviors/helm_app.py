@@ -1,0 +1,151 @@
+"""pHelmIvP: the MOOS shell around the helm engine (behaviors.helm.Helm)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from moosdb_py.app import MOOSApp
+
+from .bhv_file import BhvFile, read_bhv
+from .domain import IvPDomain, parse_domain_line
+from .helm import Helm
+from .logic import as_number
+
+EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
+
+
+def _bool(value: str, key: str) -> bool:
+    low = value.strip().lower()
+    if low not in ("true", "false"):
+        raise ValueError(f"{key} must be true or false, got '{value}'")
+    return low == "true"
+
+
+class HelmIvP(MOOSApp):
+    """pHelmIvP: the IvP helm. Reads the .bhv files named by `behaviors =`, evaluates the mode set
+    and behaviour conditions every iteration, solves the behaviours' objective functions over the
+    decision domain and posts DESIRED_HEADING / DESIRED_SPEED (and DESIRED_DEPTH) while in DRIVE.
+    It starts in PARK; MOOS_MANUAL_OVERRIDE=false puts it in DRIVE (unless active_start = true).
+    An unknown behaviour type, a bad behaviour parameter or a broken .bhv file is a start-up error
+    naming file:line."""
+
+    default_name = "pHelmIvP"
+    example_config = """\
+ProcessConfig = pHelmIvP
+{
+  AppTick    = 4                  // helm iterations per (warped) second
+  CommsTick  = 4
+
+  behaviors  = alpha.bhv          // repeatable; read in sorted file-name order
+  domain     = course:0:359:360   // name:low:high:npts[:optional] or name:low:high:delta=D
+  domain     = speed:0:4:41
+
+  active_start    = false         // true (aliases start_engaged, start_in_drive): DRIVE at start
+  allow_park      = true          // MOOS_MANUAL_OVERRIDE=true may park the helm
+  park_on_allstop = false         // any all-stop other than clear parks the helm
+  helm_prefix     =               // DESIRED_* posts become <prefix>_DESIRED_*
+  ok_skew         = 60            // seconds, or any: ignore mail stamped further from MOOS time
+  goals_mandatory = false         // accepted for compatibility
+  nav_grace       = 5             // accepted for compatibility
+  verbose         = false         // accepted for compatibility
+}"""
+    interface = """\
+SUBSCRIPTIONS
+  NAV_X, NAV_Y, NAV_HEADING, NAV_SPEED, NAV_DEPTH     ownship navigation
+  MOOS_MANUAL_OVERRIDE (and MOOS_MANUAL_OVERIDE)      "false" = drive, "true" = park
+  HELM_MAP_CLEAR                                      re-post everything (viewers)
+  IVPHELM_STATE                                       another helm posting disables this one
+  every variable in behaviour/mode/flag conditions, updates and duration_reset variables
+PUBLICATIONS
+  DESIRED_HEADING, DESIRED_SPEED, DESIRED_<VAR>       the decision (double), every iteration
+  IVPHELM_STATE      PARK | DRIVE | MALCONFIG | DISABLED, every iteration
+  IVPHELM_ALLSTOP    clear | NothingToDo | MissingDecVars:.. | BehaviorError | ManualOverride
+  IVPHELM_SUMMARY, IVPHELM_ITER, IVPHELM_BHV_ACTIVE/RUNNING/IDLE[_CNT], IVPHELM_LIFE_EVENT
+  IVPHELM_UPDATE_RESULT, IVPHELM_DOMAIN, IVPHELM_MODESET, IVPHELM_REGISTER, PLOGGER_CMD
+  mode variables (e.g. MODE = ACTIVE:SURVEYING), initialize values, behaviour flags and posts
+  (WPT_STAT, WPT_INDEX, CYCLE_INDEX, VIEW_POINT, VIEW_SEGLIST, VIEW_POLYGON, DIST_TO_STATION,
+  PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, ...)"""
+
+    def on_startup(self) -> None:
+        cfg = self.config
+        names = cfg.get_all("behaviors")
+        if not names:
+            raise ValueError("behaviors: no .bhv file given (behaviors = file.bhv)")
+        if len(set(names)) != len(names):
+            raise ValueError(f"behaviors: a file is named twice: {', '.join(names)}")
+        files: list[BhvFile] = [read_bhv(self._find(n)) for n in sorted(names)]
+        lines = cfg.get_all("domain")
+        if not lines:
+            raise ValueError("domain: no decision domain given (domain = course:0:359:360)")
+        domain = IvPDomain(vars=[self._domain_var(text) for text in lines])
+        active = any(_bool(cfg.get(k), k) for k in ("active_start", "start_engaged", "start_in_drive")
+                     if cfg.get(k) is not None)
+        skew = (cfg.get("ok_skew", "60") or "60").strip().lower()
+        if skew != "any" and (as_number(skew) is None or as_number(skew) < 0):
+            raise ValueError(f"ok_skew must be seconds or 'any', got '{skew}'")
+        self.ok_skew = None if skew == "any" else as_number(skew)
+        ownship = self.mission.community if self.mission is not None else self.name
+        self.helm = Helm(files, domain, ownship, app_name=self.name, active_start=active,
+                         allow_park=_bool(cfg.get("allow_park", "true"), "allow_park"),
+                         park_on_allstop=_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
+                         helm_prefix=cfg.get("helm_prefix", "") or "",
+                         goals_mandatory=_bool(cfg.get("goals_mandatory", "false"), "goals_mandatory"))
+        if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
+            self.helm.malconfig()
+        self.bhv_paths = [f.path for f in files]
+        self.pending_startup = self.helm.startup(self.moos_time())
+        self.registered_at: dict[str, float] = {}
+
+    def _find(self, name: str) -> Path:
+        """A .bhv file relative to the working directory (as pHelmIvP), else to the mission's folder."""
+        path = Path(name)
+        if not path.is_file() and self.mission is not None and not path.is_absolute():
+            beside = Path(self.mission.path).parent / name
+            if beside.is_file():
+                return beside
+        if not path.is_file():
+            raise ValueError(f"behaviors: file '{name}' not found (from {os.getcwd()})")
+        return path
+
+    @staticmethod
+    def _domain_var(text: str):
+        try:
+            return parse_domain_line(text)
+        except ValueError as exc:
+            raise ValueError(f"domain: {exc}") from None
+
+    def on_connect(self) -> None:
+        now = self.moos_time()
+        for var in self.helm.subscriptions():
+            self.register(var)
+            self.registered_at.setdefault(var, now)
+        if self.pending_startup:
+            for var, value, aux in self.pending_startup:
+                self.notify(var, value, source_aux=aux)
+            for path in self.bhv_paths:
+                self.notify("PLOGGER_CMD", f"COPY_FILE_REQUEST = {path}")
+            self.pending_startup = []
+
+    def on_new_mail(self, mail) -> None:
+        now = self.moos_time()
+        for msg in mail:
+            if self._skewed(msg, now):
+                self.notify("IVPHELM_SKEW", f"var={msg.key},skew={abs(now - msg.time):.1f},src={msg.source}")
+                continue
+            self.helm.on_mail(msg.key, msg.value, msg.time, msg.source)
+
+    def _skewed(self, msg, now: float) -> bool:
+        if self.ok_skew is None or msg.key in EXEMPT_FROM_SKEW or msg.source == self.name:
+            return False
+        since_registration = now - self.registered_at.get(msg.key, now)
+        return min(abs(now - msg.time), since_registration) > self.ok_skew
+
+    def iterate(self) -> None:
+        for var, value, aux in self.helm.iterate(self.moos_time()):
+            self.notify(var, value, source_aux=aux)
+
+    def status_fields(self) -> dict:
+        return {"state": self.helm.status, "iter": self.helm.iteration}
+
+
+main = HelmIvP.main
