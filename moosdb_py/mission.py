@@ -89,11 +89,11 @@ class AntlerRun(BaseModel):
 
     @property
     def new_console(self) -> bool:
-        return _truth(self.options.get("newconsole", "false"))
+        return moos_bool(self.options.get("newconsole", "false"))
 
     @property
     def inhibit_moos_params(self) -> bool:
-        return _truth(self.options.get("inhibitmoosparams", "false"))
+        return moos_bool(self.options.get("inhibitmoosparams", "false"))
 
     @property
     def path(self) -> str | None:
@@ -173,7 +173,7 @@ class Mission(BaseModel):
             getattr(self, name)
 
 
-def _truth(value: str) -> bool:
+def moos_bool(value: str) -> bool:
     """MOOS booleans: `TRUE` in any case, or a number > 0."""
     try:
         return float(value) > 0

@@ -1,0 +1,131 @@
+"""uPokeDB and uXMS: poke parsing, the scope table, and both tools against a real moosdb."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+from moosdb_py.message import MOOSMsg
+from moosdb_py.poke import Poke, parse_poke
+from moosdb_py.poke import main as poke_main
+from moosdb_py.xms import Scope, format_table, history_line, value_text
+from moosdb_py.xms import main as xms_main
+
+
+def tool(name, *args, timeout=20):
+    return subprocess.run([sys.executable, "-m", f"moosdb_py.{name}", *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+@pytest.mark.parametrize("text,poke", [
+    ("DEPLOY=true", Poke("DEPLOY", "true")),
+    ("SPEED=2.5", Poke("SPEED", 2.5)),
+    ("NAME:=12", Poke("NAME", "12")),
+    ("PTS=x=1,y=2", Poke("PTS", "x=1,y=2")),
+    ("EMPTY:=", Poke("EMPTY", "")),
+])
+def test_parse_poke(text, poke):
+    assert parse_poke(text) == poke
+
+
+@pytest.mark.parametrize("text", ["DEPLOY", "=1", ":=x"])
+def test_bad_pokes(text):
+    with pytest.raises(ValueError, match="expected VAR=value"):
+        parse_poke(text)
+
+
+def msg(key, value, source="src", time=10.0, community="c", aux=""):
+    m = MOOSMsg.notification(key, value, time=time, source=source, source_aux=aux)
+    m.community = community
+    return m
+
+
+def test_scope_wildcards_sources_and_table():
+    scope = Scope(["NAV_X", "MISSING", "DB_*"], sources=["uSim*", "MOOSDB*"], start=8.0)
+    taken = scope.take([msg("NAV_X", 1.5, "uSimMarine"), msg("NAV_X", 9.0, "intruder"),
+                        msg("DB_TIME", 3.0, "MOOSDB_c"), msg("OTHER", 1.0, "uSimMarine"),
+                        msg("NAV_Y", "x", "uSimMarine")])
+    assert [m.key for m in taken] == ["NAV_X", "DB_TIME"]
+    assert format_table(scope, {"source", "time", "community", "aux"}).splitlines() == [
+        "VarName  (S)ource    (T)ime  (C)ommunity  (A)ux Source  VarValue",
+        "-------  --------    ------  -----------  ------------  --------",
+        "NAV_X    uSimMarine  2.00    c                          1.5",
+        "MISSING  n/a         n/a     n/a          n/a           n/a",
+        "DB_TIME  MOOSDB_c    2.00    c                          3"]
+    assert "MISSING" not in format_table(scope, set(), novirgins=True)
+
+
+def test_value_text_and_history_line():
+    assert value_text(msg("A", "hello world"), trunc=5) == '"hell...'
+    assert value_text(msg("A", b"\x00" * 3)) == "<binary: 3 bytes>"
+    assert history_line(msg("DEPLOY", "true", "uPokeDB", time=12.5), 10.0) == \
+        '2.50       DEPLOY               uPokeDB         "true"'
+
+
+def test_poke_then_scope_by_mission_and_by_port(moosdb_server, tmp_path):
+    mission = tmp_path / "m.moos"
+    mission.write_text(f"ServerHost = {moosdb_server.host}\nServerPort = {moosdb_server.port}\n"
+                       "ProcessConfig = uXMS\n{\n  var = DEPLOY, SPEED\n  display_community = true\n}\n"
+                       "ProcessConfig = uPokeDB\n{\n  poke = RETURN:=false\n}\n")
+    first = tool("poke", mission, "DEPLOY=true", "SPEED=2.5", "--cache")
+    assert first.returncode == 0, first.stderr
+    prior, after = first.stdout.split("AFTER Poking the MOOSDB")
+    assert "DEPLOY   n/a" in prior and '"true"' in after and "2.5" in after and '"false"' in after
+    second = tool("poke", "--host", moosdb_server.host, "--port", moosdb_server.port, "SPEED=3", "NAME:=12")
+    assert second.returncode == 0, second.stderr
+    assert "2.5" in second.stdout.split("AFTER")[0] and "3" in second.stdout.split("AFTER")[1]
+    shown = tool("xms", mission, "--once")
+    assert shown.returncode == 0, shown.stderr
+    rows = {line.split()[0]: line.split() for line in shown.stdout.splitlines()[2:]}
+    assert rows["DEPLOY"][-1] == '"true"' and rows["SPEED"][-1] == "3" and rows["SPEED"][1] == "uPokeDB"
+    assert "(C)ommunity" in shown.stdout
+    by_port = tool("xms", "--port", moosdb_server.port, "NAME", "RET*", "NEVER", "--once", "--show=source")
+    lines = by_port.stdout.splitlines()
+    assert lines[0].split() == ["VarName", "(S)ource", "VarValue"]
+    assert [line.split()[0] for line in lines[2:]] == ["NAME", "NEVER", "RETURN"]
+    assert lines[3].split() == ["NEVER", "n/a", "n/a"]
+
+
+def test_history_mode_prints_every_post(moosdb_server):
+    scope = subprocess.Popen([sys.executable, "-m", "moosdb_py.xms", "--port", str(moosdb_server.port),
+                              "--history=COUNT", "--duration=3"], stdout=subprocess.PIPE, text=True,
+                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert scope.stdout.readline().split() == ["Time", "VarName", "Source", "VarValue"]  # registered now
+        for n in (1, 2):
+            assert tool("poke", "--port", moosdb_server.port, f"COUNT={n}").returncode == 0
+        lines = [scope.stdout.readline(), scope.stdout.readline()]
+    finally:
+        scope.terminate()
+        scope.wait(5)
+    assert [line.split()[1:] for line in lines] == [["COUNT", "uPokeDB", "1"], ["COUNT", "uPokeDB", "2"]]
+
+
+def in_process(main, capsys, *args):
+    """Run a tool's main() here (no interpreter start-up); returns (code, stdout, stderr)."""
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_tools_fail_clearly_without_a_db(free_port, capsys):
+    port = free_port()
+    code, _, err = in_process(poke_main, capsys, "--port", port, "--timeout", "0.3", "A=1")
+    assert code == 1 and f"no confirmation from the MOOSDB on localhost:{port}" in err
+    code, _, err = in_process(xms_main, capsys, "--port", port, "--wait", "0.3", "A", "--once")
+    assert code == 1 and f"no MOOSDB answering on localhost:{port}" in err
+
+
+def test_bad_command_lines(tmp_path, capsys):
+    assert "nothing to poke" in in_process(poke_main, capsys)[2]
+    assert "nothing to watch" in in_process(xms_main, capsys)[2]
+    assert "unknown column" in in_process(xms_main, capsys, "A", "--show=colour")[2]
+    broken = tmp_path / "b.moos"
+    broken.write_text("ProcessConfig = a\n{\n")
+    assert f"{broken}:1: block a is never closed" in in_process(poke_main, capsys, broken, "A=1")[2]
+
+
+@pytest.mark.parametrize("main", [poke_main, xms_main])
+def test_example_and_interface(main, capsys):
+    assert "ProcessConfig = " in in_process(main, capsys, "--example")[1]
+    assert "SUBSCRIPTIONS" in in_process(main, capsys, "--interface")[1]
