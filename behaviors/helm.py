@@ -76,6 +76,7 @@ class Helm:
                     self.behaviors.append(bhv)
         self._track_deltas()
         self.status = "DRIVE" if active_start else "PARK"
+        self.last_state = ""
         self.iteration = 0
         self.start_time: float | None = None
         self.allstop_status = ""
@@ -146,7 +147,10 @@ class Helm:
         self.iteration += 1
         if self.start_time is None:
             self.start_time = now
-        out: list[HelmPost] = [("IVPHELM_STATE", self.status, "")]
+        out: list[HelmPost] = []
+        if self.status != "DISABLED" or self.last_state != "DISABLED":
+            out.append(("IVPHELM_STATE", self.status, ""))   # DISABLED is posted only on the change
+        self.last_state = self.status
         if self.status not in ("PARK", "DRIVE"):
             return out
         nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in self.domain else [])

@@ -179,3 +179,20 @@ def test_updates_posted_while_parked_apply_once_driving(domain, make_bhv):
     run(helm, Boat(), 3, start=end, log=log, pokes={round(end, 2): {"MOOS_MANUAL_OVERRIDE": "false"}})
     assert any(v == "IVPHELM_UPDATE_RESULT" and "result=success" in val for _, v, val in log)
     assert [val for _, v, val in log if v == "DESIRED_SPEED"][-1] == 2.5
+
+
+def test_another_helm_state_disables_and_deferred_initialize(domain, make_bhv):
+    helm = Helm([make_bhv("initialize_ LATE = 5\ninitialize_ KEPT = a\nBehavior = BHV_ConstantSpeed\n{\n"
+                          " speed = 1\n}\n")], domain, "v", active_start=True)
+    assert "LATE" in helm.subscriptions()
+    helm.startup(0.0)
+    helm.on_mail("KEPT", "b", 0.0)
+    helm.on_mail("IVPHELM_STATE", "DRIVE", 0.0, source="pHelmIvP")
+    log = []
+    run(helm, Boat(), 1, log=log)
+    assert [(v, val) for _, v, val in log if v in ("LATE", "KEPT")] == [("LATE", 5.0)]
+    helm.on_mail("IVPHELM_STATE", "DRIVE", 1.0, source="pHelmIvP_other")
+    log.clear()
+    run(helm, Boat(), 2, start=1.0, log=log)
+    assert [val for _, v, val in log if v == "IVPHELM_STATE"] == ["DISABLED"]
+    assert not any(v.startswith("DESIRED") for _, v, _ in log)
