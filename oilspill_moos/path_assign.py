@@ -7,6 +7,7 @@ MOOSApp shell that owns the TCP server and the MOOS client.
 """
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 import re
@@ -17,6 +18,9 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
+from moosdb_py.app import MOOSApp
+from oilspill_moos.app_config import config_float, config_str
+from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.planner import (
     Plan,
     PlanError,
@@ -391,3 +395,198 @@ def operating_area(spec: str | None, radius: float) -> Polygon | None:
     if spec:
         return Polygon(parse_polygon_spec(spec))
     return shapely.buffer(Point(0.0, 0.0), radius) if radius > 0 else None
+
+
+MAX_LINE = 1 << 20  # a forecast outline of ~20000 vertices; longer lines are refused, not buffered
+
+
+class PathAssign(MOOSApp):
+    """pPathAssign: receives predicted spill boundaries over TCP (one JSON or pts={} line each,
+    answered `OK <seq>` or `ERR <reason>`) and leads the fleet through STATION-KEEPING ->
+    STARTING-POSITION -> OIL-PATH around the stand-off perimeter, re-sharing the loop when a
+    vehicle drops out or comes back."""
+
+    default_name = "pPathAssign"
+    example_config = """\
+ProcessConfig = pPathAssign
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  boundary_host       = 127.0.0.1   // TCP boundary server address (loopback unless you mean it)
+  boundary_port       = 9100        // its port
+  fleet               =             // expected vehicles, abe:ben:cal; empty: whoever reports
+  standoff            = 50          // metres the loop stays outside the predicted boundary
+  coordinate_timeout  = 30          // s to wait for every VEHICLE_COORDINATES before planning
+  node_timeout        = 20          // s without NODE_REPORT before a vehicle is dropped
+  capture_radius      = 10          // m from its start that counts as arrived (backs up the flag)
+  transit_speed       = 2.0         // m/s used to estimate arrival when choosing a forecast horizon
+  loop_speed          = 0           // m/s sent with the loops; 0 keeps the vehicles' own setting
+  min_replan_interval = 10          // s between accepted boundaries of different forecasts
+  heartbeat_interval  = 5           // s between SHORE_HEARTBEAT_ALL posts (vehicle watchdogs)
+  status_interval     = 2           // s between OILSPILL_STATUS posts
+  operating_area      =             // pts={x,y:...}: boundaries must touch it; empty: use the radius
+  operating_radius    = 0           // m about the origin boundaries must touch; 0: anywhere
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  VEHICLE_COORDINATES          "vname=abe,x=..,y=..,utc=.." (pCoordinates, bridged)
+  NODE_REPORT                  positions and liveness of every vehicle (bridged)
+  REACHED_STARTING_POSITION*   arrival flags; the vehicle is the _<NAME> suffix, the
+                               value (if not "true") or the message's community
+
+PUBLICATIONS:
+  OILSPILL_BOUNDARY            pts={...},label=oilspill_<seq>: the boundary in force
+  VIEW_POLYGON                 the stand-off loop, for viewers
+  OILSPILL_PHASE               STATION-KEEPING | STARTING-POSITION | OIL-PATH
+  STATION_KEEP_ALL, STATION_KEEP_<V>       true on a new boundary, false when moving on
+  OILSPILL_PHASE_ALL, OILSPILL_PHASE_<V>   the phase each vehicle should be in
+  REPORT_COORDINATES_ALL, REPORT_COORDINATES_<V>   asks pCoordinates to report
+  STARTING_POSITION_UPDATES_<V>  "points=x,y"
+  OIL_PATH_UPDATES_<V>         "points=x,y:...#repeat=forever[#speed=..]"
+  SHORE_HEARTBEAT_ALL          true every heartbeat_interval (vehicle comms watchdog)
+  COMMS_LOST_<V>               false when a dropped vehicle is heard again
+  OILSPILL_DROPPED, OILSPILL_REJOINED   vehicle names
+  OILSPILL_STATUS              phase=..,vehicles=a:b,reported=..,planned=..,arrived=..,
+                               dropped=..,boundaries=..,boundary_age=..
+  OILSPILL_WARNING             a refused boundary line or a report that made no sense
+"""
+
+    def on_startup(self) -> None:
+        cfg = self.config
+        fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
+        self.coordinator = Coordinator(Settings(
+            standoff=config_float(cfg, "standoff", 50.0, lo=0),
+            coordinate_timeout=config_float(cfg, "coordinate_timeout", 30.0, lo=0),
+            node_timeout=config_float(cfg, "node_timeout", 20.0, lo=0),
+            capture_radius=config_float(cfg, "capture_radius", 10.0, lo=0),
+            transit_speed=config_float(cfg, "transit_speed", 2.0, lo=1e-3),
+            loop_speed=config_float(cfg, "loop_speed", 0.0, lo=0),
+            min_replan_interval=config_float(cfg, "min_replan_interval", 10.0, lo=0),
+            heartbeat_interval=config_float(cfg, "heartbeat_interval", 5.0, lo=0.1),
+            status_interval=config_float(cfg, "status_interval", 2.0, lo=0.1),
+            fleet=fleet,
+            operating_area=self._operating_area(),
+        ))
+        lat = self.mission.lat_origin if self.mission is not None else None
+        lon = self.mission.long_origin if self.mission is not None else None
+        self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
+
+    def _operating_area(self) -> Polygon | None:
+        try:
+            return operating_area(config_str(self.config, "operating_area", ""),
+                                  config_float(self.config, "operating_radius", 0.0, lo=0))
+        except BoundaryError as exc:
+            raise ValueError(f"operating_area: {exc}") from None
+
+    def on_connect(self) -> None:
+        self.register("VEHICLE_COORDINATES")
+        self.register("NODE_REPORT")
+        self.register_wildcard("REACHED_STARTING_POSITION*")
+
+    async def run_async(self):
+        """The boundary server shares the app's event loop; a port in use stops the app with its error."""
+        self.boundary_host = config_str(self.config, "boundary_host", "127.0.0.1")
+        self.boundary_port = int(config_float(self.config, "boundary_port", 9100, lo=0, hi=65535))
+        self.lines_ok = self.lines_refused = 0
+        server = await asyncio.start_server(self._serve, self.boundary_host, self.boundary_port, limit=MAX_LINE)
+        self.boundary_port = server.sockets[0].getsockname()[1]
+        async with server:
+            await super().run_async()
+
+    # ---- TCP boundary server -------------------------------------------------------------
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        peer = writer.get_extra_info("peername")
+        client = f"{peer[0]}:{peer[1]}" if peer else "tcp client"
+        try:
+            while (raw := await _read_line(reader)) != b"":
+                if raw is None:
+                    reply = self._refuse(client, f"line longer than {MAX_LINE} bytes")
+                else:
+                    reply = self.accept_line(raw, client)
+                writer.write(reply.encode() + b"\n")
+                await writer.drain()
+        except ConnectionError:
+            pass
+        finally:
+            writer.close()
+
+    def accept_line(self, raw: bytes, client: str = "tcp client") -> str:
+        """One boundary line -> the reply; a refusal leaves the boundary in force alone."""
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            return self._refuse(client, "line is not UTF-8")
+        try:
+            seq = self.coordinator.offer_boundary(parse_boundary_line(text, self.grid), self.moos_time())
+        except BoundaryError as exc:
+            return self._refuse(client, str(exc))
+        self.lines_ok += 1
+        self._flush()
+        return f"OK {seq}"
+
+    def _refuse(self, client: str, reason: str) -> str:
+        self.lines_refused += 1
+        self.notify("OILSPILL_WARNING", f"{client}: {reason}")
+        return f"ERR {reason}"
+
+    # ---- MOOS side -----------------------------------------------------------------------
+
+    def on_new_mail(self, mail) -> None:
+        now = self.moos_time()
+        for msg in mail:
+            try:
+                if msg.key == "VEHICLE_COORDINATES":
+                    self.coordinator.on_coordinates(str(msg.value), now, msg.community)
+                elif msg.key == "NODE_REPORT":
+                    self.coordinator.on_node_report(str(msg.value), now, msg.community)
+                elif msg.key.startswith("REACHED_STARTING_POSITION"):
+                    self.coordinator.on_reached(_arrival_name(msg), now)
+            except ValueError as exc:
+                self.notify("OILSPILL_WARNING", f"{msg.key} from {msg.source or '?'}@{msg.community or '?'}: {exc}")
+        self._flush()
+
+    def iterate(self) -> None:
+        self.coordinator.tick(self.moos_time())
+        self._flush()
+
+    def _flush(self) -> None:
+        for key, value in self.coordinator.drain():
+            self.notify(key, value)
+
+    def status_fields(self) -> dict:
+        return {**self.coordinator.status(self.moos_time()), "port": self.boundary_port,
+                "lines_ok": self.lines_ok, "lines_refused": self.lines_refused}
+
+
+def _arrival_name(msg) -> str:
+    """REACHED_STARTING_POSITION_ABE names the vehicle; a plain flag names it by value or community."""
+    suffix = msg.key[len("REACHED_STARTING_POSITION"):].lstrip("_")
+    value = str(msg.value).strip()
+    name = suffix or (value if value.lower() not in ("true", "") else msg.community)
+    if not name:
+        raise ValueError("arrival flag without a vehicle name")
+    return name.lower()
+
+
+async def _read_line(reader: asyncio.StreamReader) -> bytes | None:
+    """The next line (b"" at the end), or None for a line over MAX_LINE, which is read and thrown away."""
+    try:
+        return await reader.readuntil(b"\n")
+    except asyncio.IncompleteReadError as exc:
+        return exc.partial
+    except asyncio.LimitOverrunError as exc:
+        await reader.readexactly(exc.consumed)
+    while True:
+        try:
+            await reader.readuntil(b"\n")
+            return None
+        except asyncio.IncompleteReadError:
+            return None
+        except asyncio.LimitOverrunError as exc:
+            await reader.readexactly(exc.consumed)
+
+
+main = PathAssign.main

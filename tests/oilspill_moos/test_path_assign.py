@@ -226,3 +226,75 @@ def test_operating_area_from_spec_or_radius():
     assert operating_area(None, 100).area == pytest.approx(math.pi * 100**2, rel=0.01)
     assert operating_area(None, 0) is None
     assert parse_polygon_spec("pts={1,2,0:3,4,0}") == [(1.0, 2.0), (3.0, 4.0)]
+
+
+# ---- the MOOSApp shell: TCP server and MOOS mail against a real moosdb -----------------------
+
+import asyncio  # noqa: E402
+
+from helpers import async_wait_until  # noqa: E402
+from moosdb_py.client import MOOSClient  # noqa: E402
+from oilspill_moos.path_assign import MAX_LINE, PathAssign  # noqa: E402
+
+
+def shore_mission(tmp_path, port):
+    path = tmp_path / "shoreside.moos"
+    path.write_text(f"ServerHost = localhost\nServerPort = {port}\nCommunity = shoreside\n"
+                    f"LatOrigin = 28.736667\nLongOrigin = -88.387222\n\n"
+                    "ProcessConfig = pPathAssign\n{\n  AppTick = 20\n  boundary_port = 0\n  fleet = abe:ben\n"
+                    "  standoff = 10\n  operating_radius = 5000\n  min_replan_interval = 0\n}\n")
+    return path
+
+
+def test_app_serves_boundaries_and_drives_the_phases(moosdb_server, tmp_path):
+    async def scenario():
+        app = PathAssign(shore_mission(tmp_path, moosdb_server.port))
+        seen = []
+        probe = MOOSClient("probe", port=moosdb_server.port, on_mail=seen.extend)
+        tasks = [asyncio.create_task(app.run_async()), asyncio.create_task(probe.run())]
+        try:
+            assert await probe.wait_connected(5)
+            probe.register_wildcard("*", "pPathAssign")
+            await async_wait_until(lambda: app.client.connected and app.client.wildcards, 5)
+            reader, writer = await asyncio.open_connection("127.0.0.1", app.boundary_port)
+
+            async def ask(line: bytes) -> str:
+                writer.write(line)
+                await writer.drain()
+                return (await asyncio.wait_for(reader.readline(), 5)).decode().strip()
+
+            assert (await ask(b"pts={0,0:1,1}\n")).startswith("ERR polygon needs at least 3 distinct points")
+            assert (await ask(b"\xff\xfe\n")) == "ERR line is not UTF-8"
+            assert (await ask(b"x" * (MAX_LINE + 10) + b"\n")) == f"ERR line longer than {MAX_LINE} bytes"
+            assert (await ask(b"pts={90000,0:90100,0:90000,100}\n")).endswith("lies outside the operating area")
+            assert await ask(b"pts={0,100:100,100:100,200:0,200}\n") == "OK 1"
+            keys = lambda: {m.key: m.value for m in seen}  # noqa: E731
+            await async_wait_until(lambda: keys().get("STATION_KEEP_ALL") == "true", 5)
+            assert "OILSPILL_WARNING" in keys()
+            probe.notify("VEHICLE_COORDINATES", "vname=abe,x=-50,y=0,utc=1")
+            probe.notify("VEHICLE_COORDINATES", "vname=ben,x=150,y=0,utc=1")
+            await async_wait_until(lambda: "STARTING_POSITION_UPDATES_BEN" in keys(), 5)
+            probe.notify("REACHED_STARTING_POSITION_abe", "true")
+            probe.notify("REACHED_STARTING_POSITION", "ben")
+            await async_wait_until(lambda: "OIL_PATH_UPDATES_ABE" in keys() and "OIL_PATH_UPDATES_BEN" in keys(), 5)
+            assert str(keys()["OIL_PATH_UPDATES_ABE"]).endswith("#repeat=forever")
+            probe.notify("NODE_REPORT", "garbage")
+            await async_wait_until(lambda: "NODE_REPORT" in str(keys().get("OILSPILL_WARNING")), 5)
+            await async_wait_until(lambda: "phase=OIL-PATH" in str(keys().get("OILSPILL_STATUS")), 5)
+            geo = (b'{"crs":"EPSG:4326","polygon":[[-88.3872,28.7376],[-88.3862,28.7376],[-88.3862,28.7386]],'
+                   b'"time":2e9}\n')
+            assert await ask(geo) == "OK 2"
+            writer.close()
+        finally:
+            app.stop()
+            probe.close()
+            await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        assert app.status_fields()["lines_refused"] == 4
+
+    asyncio.run(scenario())
+
+
+def test_app_help_example_interface(capsys):
+    for flag, text in (("--help", "OK <seq>"), ("--example", "boundary_port"), ("--interface", "OIL_PATH_UPDATES_")):
+        assert PathAssign.main([flag]) == 0
+        assert text in capsys.readouterr().out
