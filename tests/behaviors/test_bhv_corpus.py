@@ -109,3 +109,40 @@ def test_line_model_details(domain):
     assert bhv.modes[0].else_value == "ELSEWORD"
     assert np.array_equal(build_behavior(bhv.behaviors[0], domain, InfoBuffer(), "").points, [[1, 2], [3, 4]])
 
+
+
+def nsplugged(path, **defines):
+    from moosdb_py.nsplug import preprocess
+    return parse_bhv(preprocess(path, defines), path)
+
+
+def test_ufld_alpha_after_nsplug(corpus, domain):
+    bhv = nsplugged(corpus / "ufld_alpha" / "meta_vehicle.bhv", VNAME="abe", START_POS="0,0")
+    survey = build_behavior(bhv.behavior("waypt_survey"), domain, InfoBuffer(), "abe")
+    assert len(survey.points) == 5 and survey.repeat == 1 and survey.perpetual
+    assert survey.updates_var == "WPT_UPDATE"   # `UPDATES = ...` in upper case
+    ret = build_behavior(bhv.behavior("waypt_return"), domain, InfoBuffer(), "abe")
+    assert ret.points.tolist() == [[0, 0]]
+
+
+def test_m2_berta_after_nsplug(corpus, domain):
+    bhv = nsplugged(corpus / "m2_berta" / "meta_vehicle.bhv", VNAME="abe", START_POS="x=0,y=0,heading=0",
+                    STOCK_SPD="1.4", LOITER_POS="0,-50")
+    assert bhv.behavior("loiter").get("polygon").startswith("radial:: 0,-50, radius=20")
+    assert bhv.behavior("loiter").get("speed") == "1.4"
+    sk = build_behavior(bhv.behavior("station-keep"), domain, InfoBuffer(), "abe")
+    assert sk.center_activate and (sk.inner, sk.outer) == (5, 10)
+    assert [i.var for i in bhv.initializes] == ["DEPLOY", "RETURN", "STATION_KEEP", "LOITER", "AVOID"]
+
+
+@pytest.mark.parametrize("vname, start", [("henry", "80,0"), ("gilda", "0,0")])
+def test_lab_meta_matches_golden_targ(corpus, vname, start):
+    folder = corpus / "minicourse_lab_henry_gilda_baseline"
+    loiter = "x=125,y=-50" if vname == "henry" else "x=0,y=-75"
+    meta = nsplugged(folder / "meta_vehicle.bhv", VNAME=vname, START_POS=start, LOITER_POS=loiter)
+    targ = read_bhv(folder / f"targ_{vname}.bhv")
+
+    def facts(b):
+        return ([(i.var, i.value) for i in b.initializes], [(m.var, m.value, m.else_value) for m in b.modes],
+                [(s.type, [(p.key, " ".join(p.value.split())) for p in s.params]) for s in b.behaviors])
+    assert facts(meta) == facts(targ)
