@@ -36,8 +36,11 @@ def log_root_name(stem: str, when: datetime, timestamp: bool = True) -> str:
 
 
 def alog_header(shown_path: str, log_start: float, mark_data_type: bool = False) -> str:
-    """The `%%` header block; LOGSTART has 16 significant digits, right-justified in 20 characters."""
-    lines = [RULE, f"%% LOG FILE:       {shown_path}", f"%% FILE OPENED ON  {_time.ctime(log_start)}",
+    """The `%%` header block; LOGSTART (MOOS time, so warped) has 16 significant digits in 20 characters.
+
+    The opening date is the wall clock, as the C library's ctime gives it.
+    """
+    lines = [RULE, f"%% LOG FILE:       {shown_path}", f"%% FILE OPENED ON  {_time.ctime()}",
              f"%% LOGSTART        {log_start:20.16g}"]
     if mark_data_type:
         lines.append(DATATYPE_MARKING)

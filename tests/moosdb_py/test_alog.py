@@ -23,7 +23,7 @@ def test_header():
     header = alog_header("./LOG_ABE/LOG_ABE.alog", START).splitlines()
     assert header[0] == header[-1] == "%" * 59
     assert header[1] == "%% LOG FILE:       ./LOG_ABE/LOG_ABE.alog"
-    assert header[2].startswith("%% FILE OPENED ON  ") and header[2].endswith("2024")
+    assert header[2].startswith("%% FILE OPENED ON  ") and header[2].endswith(str(datetime.now().year))
     assert header[3] == "%% LOGSTART           1708009923.123456"
     assert "%% DATATYPE MARKING ON" in alog_header("x", START, mark_data_type=True)
 

@@ -1,0 +1,295 @@
+"""pLogger: records a community's traffic in `.alog` files that MOOS-IvP's alog tools read.
+
+Config parsing is pure (`LoggerConfig.from_block`); the app opens `<PATH>/<root>/`, copies the
+mission in as `<root>._moos`, writes each message as it arrives (AsyncLog), optionally a
+synchronous `.slog` table, and an `.xlog` of what the wildcard omitted (WildCardExclusionLog).
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+from .alog import AlogWriter, alog_header, log_root_name
+from .app import MOOSApp
+from .mission import ConfigEntry, ProcessConfig, moos_bool
+from .moosdb import wild_match
+
+ALWAYS_OMITTED = ("MISSION_FILE",)
+CMD_VAR = "PLOGGER_CMD"
+
+
+@dataclass(frozen=True)
+class LogRequest:
+    """`Log = VAR @ period [NOSYNC] [MONITOR]`: subscribe at `period` s; in the .slog unless NOSYNC."""
+
+    var: str
+    period: float = 0.0
+    sync: bool = True
+    monitor: bool = False
+
+
+def parse_log_line(entry: ConfigEntry) -> LogRequest:
+    var, _, rest = entry.value.partition("@")
+    var = var.strip()
+    words = rest.split()
+    if not var or " " in var:
+        raise entry.source.error(f"Log = '{entry.value}': expected Log = VAR @ period [NOSYNC] [MONITOR]")
+    period = 0.0
+    if words:
+        try:
+            period = float(words[0])
+        except ValueError:
+            raise entry.source.error(f"Log = '{entry.value}': period '{words[0]}' is not a number") from None
+        if period < 0:
+            raise entry.source.error(f"Log = '{entry.value}': the period must not be negative")
+    flags = {w.upper() for w in words[1:]}
+    unknown = flags - {"NOSYNC", "MONITOR"}
+    if unknown:
+        raise entry.source.error(f"Log = '{entry.value}': unknown flag {', '.join(sorted(unknown))}")
+    return LogRequest(var, period, "NOSYNC" not in flags, "MONITOR" in flags)
+
+
+def _bool(block: ProcessConfig, key: str, default: bool) -> bool:
+    value = block.get(key)
+    return default if value is None else moos_bool(value.split("@")[0])
+
+
+def _patterns(block: ProcessConfig, key: str) -> list[str]:
+    return [p.strip() for value in block.get_all(key) for p in value.split(",") if p.strip()]
+
+
+@dataclass
+class LoggerConfig:
+    """Every pLogger parameter with MOOS's default."""
+
+    file: str = "MOOSLog"
+    path: str = "./"
+    file_timestamp: bool = True
+    async_log: bool = True
+    sync_log: bool = False
+    sync_period: float = 1.0
+    logs: list[LogRequest] = field(default_factory=list)
+    wildcard_logging: bool = False
+    wildcard_patterns: list[str] = field(default_factory=lambda: ["*"])
+    wildcard_omit: list[str] = field(default_factory=list)
+    wildcard_exclusion_log: bool = False
+    log_aux_src: bool = False
+    double_precision: int = 5
+    mark_externals: bool = False
+    mark_data_type: bool = False
+    utc_log_directories: bool = False
+
+    @classmethod
+    def from_block(cls, block: ProcessConfig | None) -> "LoggerConfig":
+        config = cls()
+        if block is None:
+            return config
+        config.file = block.get("File", config.file)
+        config.path = block.get("PATH", config.path)
+        config.file_timestamp = _bool(block, "FileTimeStamp", True)
+        config.async_log = _bool(block, "AsyncLog", True)
+        config.sync_log = _bool(block, "SyncLog", False)
+        sync = block.entry("SyncLog")
+        if sync is not None and "@" in sync.value:
+            config.sync_period = _number(sync, sync.value.split("@")[1])
+        config.logs = [parse_log_line(e) for e in block.entries if e.key.lower() == "log"]
+        config.wildcard_logging = _bool(block, "WildCardLogging", False)
+        config.wildcard_patterns = _patterns(block, "WildCardPattern") or ["*"]
+        config.wildcard_omit = _patterns(block, "WildCardOmitPattern")
+        config.wildcard_exclusion_log = _bool(block, "WildCardExclusionLog", False)
+        config.log_aux_src = _bool(block, "LogAuxSrc", False)
+        config.mark_externals = _bool(block, "MarkExternals", False)
+        config.mark_data_type = _bool(block, "MarkDataType", False)
+        config.utc_log_directories = _bool(block, "UTCLogDirectories", False)
+        precision = block.entry("DoublePrecision")
+        if precision is not None:
+            config.double_precision = int(_number(precision, precision.value))
+            if not 0 <= config.double_precision <= 15:
+                raise precision.source.error("DoublePrecision must be between 0 and 15")
+        return config
+
+    def omitted(self, var: str) -> bool:
+        """A wildcard-logged variable that is left out (MISSION_FILE always is)."""
+        return var in ALWAYS_OMITTED or any(wild_match(p, var) for p in self.wildcard_omit)
+
+    def wanted(self, var: str) -> bool:
+        """Logged: named in a Log line, or caught by the wildcard and not omitted."""
+        if any(r.var == var for r in self.logs):
+            return True
+        return self.wildcard_logging and any(wild_match(p, var) for p in self.wildcard_patterns) and not self.omitted(var)
+
+
+def _number(entry: ConfigEntry, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise entry.source.error(f"{entry.key} = '{entry.value}': '{text.strip()}' is not a number") from None
+    if value < 0 or math.isnan(value):
+        raise entry.source.error(f"{entry.key} = '{entry.value}' must not be negative")
+    return value
+
+
+class SyncLog:
+    """The .slog: every period, one row with the latest value of each synchronous variable."""
+
+    def __init__(self, path: Path, shown: str, log_start: float, variables: list[str], precision: int):
+        self.variables = variables
+        self.latest: dict[str, float | str] = {}
+        self.precision = precision
+        self.stream = open(path, "w", encoding="latin-1", newline="\n")
+        header = alog_header(shown, log_start).splitlines()
+        columns = [f"%%   ({i}) {name}" for i, name in enumerate(["TIME", *variables], 1)]
+        labels = "%% " + " ".join(f"{name:<15}" for name in ["TIME", *variables])
+        self.stream.write("\n".join([*header[:-1], *columns, header[-1], labels]) + "\n")
+
+    def update(self, var: str, value: float | str) -> None:
+        if var in self.variables:
+            self.latest[var] = value
+
+    def write_row(self, rel_time: float) -> None:
+        cells = []
+        for var in self.variables:
+            value = self.latest.get(var, "NaN")
+            cells.append(f"{value:.{self.precision}f}" if isinstance(value, float) else str(value))
+        self.stream.write(f"{rel_time:<15.5f} " + " ".join(f"{c:<15}" for c in cells) + "\n")
+
+    def close(self) -> None:
+        self.stream.close()
+
+
+class Logger(MOOSApp):
+    """pLogger: writes every logged message to <PATH>/<root>/<root>.alog, in MOOS-IvP's alog format.
+
+    root = File, plus `_D_M_YYYY_____hh_mm_ss` with FileTimeStamp (local time, or UTC with
+    UTCLogDirectories). The mission file is copied in as <root>._moos; PLOGGER_CMD =
+    COPY_FILE_REQUEST=<file> copies another file in as <root>._<ext>. Log = VAR @ period lines pick
+    variables; WildCardLogging logs everything that no WildCardOmitPattern matches.
+    """
+
+    default_name = "pLogger"
+    alog: AlogWriter | None = None     # files are opened in on_startup
+    xlog: AlogWriter | None = None
+    slog: SyncLog | None = None
+    example_config = """\
+ProcessConfig = pLogger
+{
+  AppTick   = 5          // how often the files are flushed and the .slog row written
+  CommsTick = 5
+
+  File          = MOOSLog   // stem of the log folder and file names (default MOOSLog)
+  PATH          = ./        // folder the log folder is made in (default ./)
+  FileTimeStamp = true      // append _D_M_YYYY_____hh_mm_ss to the stem (default true)
+  UTCLogDirectories = false // time stamp in UTC instead of local time (default false)
+  AsyncLog      = true      // write the .alog, one line per message (default true)
+  SyncLog       = false @ 1 // write the .slog table every period seconds (default false @ 1)
+  LogAuxSrc     = false     // source column is source:aux (default false)
+  MarkExternals = false     // append @community to the source of foreign messages (default false)
+  MarkDataType  = false     // prefix values with D: or S: (default false)
+  DoublePrecision = 5       // decimals of logged doubles (default 5)
+
+  Log = NAV_X @ 0           // VAR @ period [NOSYNC] [MONITOR]; repeatable (default none)
+  WildCardLogging      = false  // log every variable (default false)
+  WildCardPattern      = *      // variable patterns the wildcard takes (default *)
+  WildCardOmitPattern  = *_STATUS  // repeatable, comma lists allowed (default none)
+  WildCardExclusionLog = false  // write omitted variables to the .xlog (default false)
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  every Log = VAR (at its period); with WildCardLogging every variable (pattern *), and PLOGGER_CMD
+PUBLICATIONS:
+  LOGGER_DIRECTORY   the folder being written, e.g. ./MOOSLog_21_11_2026_____23_05_09
+  PLOGGER_STATUS     the app status, plus directory=, lines= (alog lines written), excluded=
+"""
+
+    def on_startup(self) -> None:
+        self.settings = LoggerConfig.from_block(self.config)
+        self.lines_written = 0
+        self.excluded = 0
+        self._open_files()
+
+    def _open_files(self) -> None:
+        settings = self.settings
+        self.log_start = self.moos_time()
+        now = datetime.now(timezone.utc) if settings.utc_log_directories else datetime.now()
+        self.root = log_root_name(settings.file, now, settings.file_timestamp)
+        self.directory = Path(settings.path) / self.root
+        self.directory.mkdir(parents=True, exist_ok=True)
+        shown = str(Path(settings.path) / self.root / self.root)
+        writer_options = dict(double_precision=settings.double_precision, log_aux_src=settings.log_aux_src,
+                              mark_externals=settings.mark_externals, community=self._community(),
+                              mark_data_type=settings.mark_data_type)
+        self.alog = AlogWriter(self.directory / f"{self.root}.alog", self.log_start, shown_path=shown + ".alog",
+                               **writer_options) if settings.async_log else None
+        self.xlog = AlogWriter(self.directory / f"{self.root}.xlog", self.log_start, shown_path=shown + ".xlog",
+                               **writer_options) if settings.wildcard_exclusion_log else None
+        sync_vars = [r.var for r in settings.logs if r.sync]
+        self.slog = SyncLog(self.directory / f"{self.root}.slog", shown + ".slog", self.log_start, sync_vars,
+                            settings.double_precision) if settings.sync_log else None
+        self._next_sync = self.log_start
+        if self.mission is not None:
+            shutil.copyfile(self.mission.path, self.directory / f"{self.root}._moos")
+
+    def _community(self) -> str:
+        return self.mission.community if self.mission is not None else ""
+
+    def on_connect(self) -> None:
+        for request in self.settings.logs:
+            self.register(request.var, request.period)
+        if self.settings.wildcard_logging or self.settings.wildcard_exclusion_log:
+            for pattern in self.settings.wildcard_patterns:
+                self.register_wildcard(pattern, "*", 0.0)
+        self.register(CMD_VAR)
+        self.notify("LOGGER_DIRECTORY", str(self.directory))
+
+    def on_new_mail(self, mail) -> None:
+        for msg in mail:
+            if msg.key == CMD_VAR and msg.is_string():
+                self._command(msg.string)
+            if self.settings.wanted(msg.key):
+                if self.alog is not None:
+                    self.alog.write(msg)
+                    self.lines_written += 1
+                if self.slog is not None and not msg.is_binary():
+                    self.slog.update(msg.key, msg.value)
+            elif self.xlog is not None and self.settings.wildcard_logging:
+                self.xlog.write(msg)
+                self.excluded += 1
+
+    def _command(self, text: str) -> None:
+        name, _, value = text.partition("=")
+        if name.strip().upper() != "COPY_FILE_REQUEST":
+            return
+        source = Path(value.strip())
+        try:
+            shutil.copyfile(source, self.directory / f"{self.root}._{source.suffix.lstrip('.') or 'file'}")
+        except OSError as exc:
+            self.notify("PLOGGER_WARNING", f"COPY_FILE_REQUEST {source}: {exc.strerror}")
+
+    def iterate(self) -> None:
+        now = self.moos_time()
+        if self.slog is not None and now >= self._next_sync:
+            self.slog.write_row(now - self.log_start)
+            self._next_sync = now + self.settings.sync_period
+        for writer in (self.alog, self.xlog):
+            if writer is not None:
+                writer.flush()
+        if self.slog is not None:
+            self.slog.stream.flush()
+
+    async def run_async(self) -> None:
+        try:
+            await super().run_async()
+        finally:
+            for writer in (self.alog, self.xlog, self.slog):
+                if writer is not None:
+                    writer.close()
+
+    def status_fields(self) -> dict:
+        return {"directory": str(self.directory), "lines": self.lines_written, "excluded": self.excluded}
+
+
+main = Logger.main
