@@ -12,3 +12,4 @@ class BHV_ConstantHeading(OneVarPeak):
     value_wrap = True
     peakwidth = 10.0
     basewidth = 170.0
+    summitdelta = 5.0   # a plateau of equal utility would let ties pick the heading

@@ -196,3 +196,16 @@ def test_another_helm_state_disables_and_deferred_initialize(domain, make_bhv):
     run(helm, Boat(), 2, start=1.0, log=log)
     assert [val for _, v, val in log if v == "IVPHELM_STATE"] == ["DISABLED"]
     assert not any(v.startswith("DESIRED") for _, v, _ in log)
+
+
+def test_spawned_behavior_from_template(domain, make_bhv):
+    helm = Helm([make_bhv("Behavior = BHV_ConstantSpeed\n{\n name = cs_\n templating = spawn\n updates = CS\n"
+                          " speed = 1\n}\nBehavior = BHV_ConstantHeading\n{\n heading = 45\n}\n")],
+                domain, "v", active_start=True)
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 2, log=log, pokes={1.5: {"CS": "name=a # speed=2.5"}})
+    assert [b.name for b in helm.behaviors] == ["const_heading", "cs_a"]
+    assert any(v == "IVPHELM_LIFE_EVENT" and "bname=cs_a" in val and "event=spawn" in val for _, v, val in log)
+    assert [val for _, v, val in log if v == "DESIRED_SPEED"][-1] == 2.5
+    assert [val for _, v, val in log if v == "DESIRED_HEADING"][-1] == 45
