@@ -208,7 +208,11 @@ async def run(args) -> int:
                 geometries, times = read_observation_dir(args.observations)
                 environments = None if environment is None else [environment] * len(times)
                 release = None
-            if times and times[-1] != last_time:
+            if not times:
+                if args.once:
+                    raise ValueError(f"{args.observations}: no polygon files to forecast from")
+                log(f"{args.observations}: no polygon files yet")
+            elif times[-1] != last_time:
                 forecasts = forecaster.forecast(geometries, times, environments, release)
                 try:
                     await push_forecasts(pusher, forecasts)

@@ -290,7 +290,7 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     metrics_path = out_dir / "metrics.json"
-    record = json.loads(metrics_path.read_text()) if metrics_path.exists() else {}
+    record = {}
     area_targets = tuple(i for i, n in enumerate(F.TARGET_NAMES) if "area" in n)
     for kind in kinds:
         cfg = TrainConfig(kind=kind, area_targets=area_targets, adaptive=adaptive_fused and kind == "ltc-fused",
@@ -299,16 +299,19 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
         model, history = fit(train_t, val_t, cfg, horizons_h=F.HORIZONS_H, checkpoint=out_dir / f"{kind}.pt",
                              extra=extra, progress=progress)
         best = min(history, key=lambda h: h["val"]["loss"] - cfg.nll_weight * h["val"]["nll"])
-        record[kind] = {"train_config": asdict(cfg), "epochs_run": len(history), "best_epoch": best["epoch"],
-                        "val_at_best": best["val"], "train_loss_at_best": best["train_loss"],
-                        "train_seconds": round(time.perf_counter() - started, 1),
-                        "n_params": sum(p.numel() for p in model.parameters()),
-                        "train_windows": len(train_t), "val_windows": len(val_t),
-                        "dataset": extra["dataset"], "split_seed": split_seed}
+        entry = {"train_config": asdict(cfg), "epochs_run": len(history), "best_epoch": best["epoch"],
+                 "val_at_best": best["val"], "train_loss_at_best": best["train_loss"],
+                 "train_seconds": round(time.perf_counter() - started, 1),
+                 "n_params": sum(p.numel() for p in model.parameters()),
+                 "train_windows": len(train_t), "val_windows": len(val_t),
+                 "dataset": extra["dataset"], "split_seed": split_seed}
+        # re-read just before writing: another `train --model` run may share the directory
+        record = json.loads(metrics_path.read_text()) if metrics_path.exists() else {}
+        record[kind] = entry
         metrics_path.write_text(json.dumps(record, indent=1) + "\n")
         if progress:
             print(f"{kind}: best epoch {best['epoch']} of {len(history)}, val MSE {best['val']['mse']:.4f}, "
-                  f"{record[kind]['train_seconds']} s -> {out_dir / (kind + '.pt')}")
+                  f"{entry['train_seconds']} s -> {out_dir / (kind + '.pt')}")
     return record
 
 

@@ -98,3 +98,46 @@ def test_pipeline_scores_every_method_and_writes_the_report(trained, tmp_path):
     text = report.read_text()
     assert "| ltc-fused |" in text and "persistence" in text and "Wilcoxon" in text
     assert (tmp_path / "img" / "forecaster-horizons.png").stat().st_size > 1000
+
+
+def test_operational_once_pushes_every_horizon_to_a_listener(trained, tmp_path):
+    import json
+    import socket
+    import threading
+
+    from oilspill_moos.forecaster import operational
+
+    root, scenarios = trained
+    for k in (10, 11, 12):
+        name = f"slick_{scenarios[0].times()[k]:%Y%m%dT%H%M}.geojson"
+        geometry = scenarios[0].geometries[k]
+        (tmp_path / name).write_text(json.dumps({"type": "FeatureCollection", "features": [
+            {"type": "Feature", "properties": {}, "geometry": geometry.__geo_interface__}]}))
+    received = []
+    server = socket.create_server(("127.0.0.1", 0))
+    server.settimeout(20)
+
+    def listen():
+        conn, _ = server.accept()
+        with conn, conn.makefile("rwb") as stream:
+            for n, line in enumerate(stream, 1):
+                received.append(json.loads(line))
+                stream.write(f"OK {n}\n".encode())
+                stream.flush()
+
+    thread = threading.Thread(target=listen, daemon=True)
+    thread.start()
+    rc = operational.main(["--once", "--observations", str(tmp_path), "--weights", str(root / "weights"),
+                           "--model", "lstm", "--port", str(server.getsockname()[1])])
+    server.close()
+    assert rc == 0
+    assert [m["horizon_h"] for m in received] == [3, 7, 11, 15]
+    assert all(m["crs"] == "EPSG:4326" and len(m["polygon"]) >= 3 and m["uncertainty_m"] > 0 for m in received)
+
+
+def test_forecaster_refuses_a_single_observation(trained):
+    from oilspill_moos.forecaster.operational import Forecaster
+
+    root, scenarios = trained
+    with pytest.raises(ValueError, match="at least 2"):
+        Forecaster(root / "weights", "ltc-fused").forecast(scenarios[0].geometries[:1], scenarios[0].times()[:1])
