@@ -7,11 +7,18 @@ the datagram codec are pure; the `Share` MOOSApp only adds the UDP sockets.
 """
 from __future__ import annotations
 
-import re
+import asyncio
+import contextlib
+import logging
+import socket
 from dataclasses import dataclass, field, replace
 
+from moosdb_py.app import MOOSApp
 from moosdb_py.codec import CodecError, decode_message, encode_message
 from moosdb_py.message import NOTIFY, MOOSMsg
+from moosdb_py.moosdb import wild_match
+
+log = logging.getLogger(__name__)
 
 MAX_DATAGRAM = 48 * 1024  # the C++ pShare's largest payload
 DEFAULT_MULTICAST_ADDRESS = "224.1.1.11"
@@ -184,12 +191,6 @@ def parse_command(text: str, warnings: list[str]) -> tuple[list[OutputSpec], tup
 
 # --- the routing table ------------------------------------------------------------------------
 
-def wildcard_match(pattern: str, text: str) -> bool:
-    """MOOSWildCmp: `*` any run, `?` one character, case-sensitive, whole string."""
-    regex = "".join(".*" if c == "*" else "." if c == "?" else re.escape(c) for c in pattern)
-    return re.fullmatch(regex, text, re.DOTALL) is not None
-
-
 def is_wildcard(src_name: str) -> bool:
     return any(c in src_name for c in "*?:")
 
@@ -288,14 +289,14 @@ class ShareTable:
 
     def is_shared(self, key: str) -> bool:
         """True for a variable this pShare forwards: such a datagram is not posted (stops echo loops)."""
-        return key in self.outputs or any(wildcard_match(w.var_pattern, key) for w in self.wildcards)
+        return key in self.outputs or any(wild_match(w.var_pattern, key) for w in self.wildcards)
 
     def forward(self, msg: MOOSMsg, now: float) -> list[Output]:
         """The shares a new value of `msg.key` goes out on now (frequency limits applied)."""
         shares = self.outputs.get(msg.key)
         if shares is None:
             matching = [w for w in self.wildcards
-                        if wildcard_match(w.var_pattern, msg.key) and wildcard_match(w.app_pattern, msg.source)]
+                        if wild_match(w.var_pattern, msg.key) and wild_match(w.app_pattern, msg.source)]
             if not matching:
                 return []
             shares = self.outputs[msg.key] = [Output(msg.key, w.dest_for(msg.key), w.route, w.frequency)
@@ -315,3 +316,236 @@ class ShareTable:
     def input_summary(self) -> str:
         """PSHARE_INPUT_SUMMARY: `host:port,host:port`."""
         return ",".join(str(r) for r in self.inputs)
+
+
+# --- the MOOSApp shell: UDP sockets -------------------------------------------------------------
+
+SUMMARY_PERIOD = 1.0  # seconds (MOOS time) between PSHARE_*_SUMMARY posts
+RECV_BUFFER = 64 * 1024
+
+
+class Share(MOOSApp):
+    """pShare: forwards MOOS variables to other MOOS communities over UDP, and posts what other
+    communities send it.  Each forwarded message keeps its source, originating community and time
+    stamp; only its name changes (src_name -> dest_name).  A received datagram whose variable this
+    pShare itself forwards is dropped (that stops echo loops); a malformed one is logged and dropped.
+
+    Usage: pShare mission.moos [alias]   (routes from its ProcessConfig block and from PSHARE_CMD)
+    One datagram per message, laid out as a serialised CMOOSMsg, as the C++ pShare sends it.
+    """
+
+    default_name = "pShare"
+    example_config = """\
+ProcessConfig = pShare
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  // Listen for other communities' datagrams (repeatable; '&' separates routes).
+  // localhost:P listens on loopback only; 0.0.0.0:P on every interface.
+  input  = route = localhost:9201
+
+  // Forward X as Y (repeatable).  dest_name defaults to src_name; frequency (Hz,
+  // default 0 = every change) limits the rate on each route.
+  output = src_name = X, dest_name = Y, route = localhost:9200 & multicast_8, frequency = 0
+  // Wildcards: src_name = NAV_*  (dest_name is then a prefix; dest_name = ^ keeps what * matched);
+  //            src_name = NAV_*:uSim*  also matches the publishing app.
+  // Shorthand: output = X->Y:localhost:9200@2 & Z:multicast_8
+
+  multicast_address   = 224.1.1.11   // the group multicast_N routes use
+  multicast_base_port = 24460        // multicast_N is this port + N
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  PSHARE_CMD (<ALIAS>_CMD under an alias)
+      cmd=output,src_name=X,dest_name=Y,route=host:port[&route...][,frequency=Hz]
+      cmd=input,route=host:port[&route...]
+  every output's src_name (wildcard outputs: a wildcard registration)
+
+PUBLICATIONS:
+  PSHARE_OUTPUT_SUMMARY  src->dest:host:port & dest2:host:port, src2->...   (once a second)
+  PSHARE_INPUT_SUMMARY   host:port,host:port
+  every variable received from another community, as sent (source, community, time kept)
+"""
+
+    def on_startup(self) -> None:
+        cfg = self.config
+        base_port = cfg.get("multicast_base_port") or str(DEFAULT_MULTICAST_BASE_PORT)
+        if not base_port.strip().isdigit():
+            raise ValueError(f"multicast_base_port: '{base_port}' is not a port number")
+        self.table = ShareTable((cfg.get("multicast_address") or DEFAULT_MULTICAST_ADDRESS).strip(),
+                                int(base_port))
+        self.community = self.mission.community if self.mission else ""
+        self.counts = dict.fromkeys(("sent", "received", "echo", "malformed", "oversize", "send_errors"), 0)
+        self.last_summary: float | None = None
+        self.addresses: dict[Route, tuple] = {}
+        self.listeners: dict[Route, socket.socket] = {}
+        self.sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sender.setblocking(False)
+        self.sender.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
+        warnings: list[str] = []
+        for key, apply in (("output", self.apply_output), ("input", self.apply_input)):
+            for entry in [e for e in cfg.entries if e.key.lower() == key]:
+                try:
+                    apply(entry.value, warnings)
+                except (ShareConfigError, OSError) as exc:
+                    raise ValueError(f"{entry.source.file}:{entry.source.line}: {key}: {exc}") from None
+        for warning in warnings:
+            log.warning("%s: %s", self.name, warning)
+
+    def apply_output(self, text: str, warnings: list[str]) -> None:
+        for spec in parse_output(text, warnings):
+            self.subscribe(self.table.add_output(spec))
+
+    def apply_input(self, text: str, warnings: list[str]) -> None:
+        for route_text in parse_input(text, warnings):
+            self.listen(route_text)
+
+    def subscribe(self, subs: list[Subscription]) -> None:
+        for sub in subs:
+            if sub.app_pattern is None:
+                self.register(sub.var)
+            else:
+                self.register_wildcard(sub.var, sub.app_pattern)
+
+    def listen(self, route_text: str) -> None:
+        route = self.table.add_input(route_text)
+        if route is None:
+            return
+        try:
+            self.listeners[route] = open_listener(route)
+        except OSError as exc:
+            self.table.remove_input(route)
+            raise OSError(f"cannot listen on {route}: {exc.strerror or exc}") from None
+        asyncio.get_running_loop().add_reader(self.listeners[route].fileno(), self.on_datagrams, route)
+
+    def on_connect(self) -> None:
+        self.register(self.command_key)
+        self.subscribe(self.table.subscriptions())
+
+    def on_new_mail(self, mail: list[MOOSMsg]) -> None:
+        now = self.moos_time()
+        for msg in mail:
+            if msg.key == self.command_key:
+                self.on_command(msg)
+                continue
+            for share in self.table.forward(msg, now):
+                self.send(msg, share)
+
+    def on_command(self, msg: MOOSMsg) -> None:
+        warnings: list[str] = []
+        try:
+            specs, inputs = parse_command(msg.string, warnings)
+            for spec in specs:
+                self.subscribe(self.table.add_output(spec))
+            for route_text in inputs:
+                self.listen(route_text)
+        except (ShareConfigError, OSError) as exc:
+            log.error("%s: %s from %s rejected: %s", self.name, self.command_key, msg.source, exc)
+        for warning in warnings:
+            log.warning("%s: %s from %s: %s", self.name, self.command_key, msg.source, warning)
+
+    def send(self, msg: MOOSMsg, share: Output) -> None:
+        try:
+            datagram = encode_datagram(msg, share.dest, msg.community or self.community)
+        except DatagramTooLarge as exc:
+            self.counts["oversize"] += 1
+            log.error("%s: %s", self.name, exc)
+            return
+        try:
+            address = self.addresses.get(share.route) or self.resolve(share.route)
+            self.sender.sendto(datagram, address)
+            self.counts["sent"] += 1
+        except OSError as exc:  # unresolvable host, full buffer, unreachable network
+            self.counts["send_errors"] += 1
+            log.warning("%s: %s -> %s: send failed: %s", self.name, share.dest, share.route, exc)
+
+    def resolve(self, route: Route) -> tuple:
+        info = socket.getaddrinfo(route.host, route.port, socket.AF_INET, socket.SOCK_DGRAM)
+        self.addresses[route] = info[0][4]
+        return self.addresses[route]
+
+    def on_datagrams(self, route: Route) -> None:
+        sock = self.listeners[route]
+        while True:
+            try:
+                data, sender = sock.recvfrom(RECV_BUFFER)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                log.warning("%s: receive on %s failed: %s", self.name, route, exc)
+                return
+            self.on_datagram(data, f"{sender[0]}:{sender[1]}", route)
+
+    def on_datagram(self, data: bytes, sender: str, route: Route) -> None:
+        try:
+            msg = decode_datagram(data)
+        except MalformedDatagram as exc:
+            self.counts["malformed"] += 1
+            log.warning("%s: malformed datagram from %s on %s dropped: %s", self.name, sender, route, exc)
+            return
+        if self.table.is_shared(msg.key):
+            self.counts["echo"] += 1
+            return
+        self.counts["received"] += 1
+        self.post_message(msg)
+
+    def iterate(self) -> None:
+        now = self.moos_time()
+        if self.last_summary is None or now - self.last_summary >= SUMMARY_PERIOD:
+            self.last_summary = now
+            self.notify("PSHARE_OUTPUT_SUMMARY", self.table.output_summary())
+            self.notify("PSHARE_INPUT_SUMMARY", self.table.input_summary())
+
+    def post_message(self, msg: MOOSMsg) -> None:
+        """Post a received message as it was sent, like C++ `Post(msg, keep_source=true)`.
+
+        The client stamps its own name on everything it queues; the message is encoded only when
+        the write loop runs, so putting the original source back right away is what goes out.
+        """
+        source = msg.source
+        self.client.published.add(msg.key)
+        self.client._post(msg)
+        msg.source = source
+
+    async def run_async(self) -> None:
+        try:
+            await super().run_async()
+        finally:
+            self.close_sockets()
+
+    def close_sockets(self) -> None:
+        loop = asyncio.get_running_loop()
+        for sock in self.listeners.values():
+            with contextlib.suppress(ValueError, OSError):
+                loop.remove_reader(sock.fileno())
+            sock.close()
+        self.listeners.clear()
+        if getattr(self, "sender", None) is not None:
+            self.sender.close()
+
+    def status_fields(self) -> dict:
+        return dict(self.counts)
+
+
+def open_listener(route: Route) -> socket.socket:
+    """A non-blocking UDP socket bound to an input route (a multicast one joins its group)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        if route.multicast:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(("", route.port))
+            group = socket.inet_aton(socket.gethostbyname(route.host))
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, group + socket.inet_aton("0.0.0.0"))
+        else:
+            sock.bind((route.host, route.port))
+        sock.setblocking(False)
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
+main = Share.main

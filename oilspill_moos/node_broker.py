@@ -8,9 +8,14 @@ posts out, so the handshake can be tested without sockets.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field, fields, replace
 
-from oilspill_moos.app_config import parse_pairs
+from moosdb_py.app import MOOSApp
+from moosdb_py.message import MOOSMsg
+from oilspill_moos.app_config import config_bool, parse_pairs
+
+log = logging.getLogger(__name__)
 
 PING_VAR = "NODE_BROKER_PING"
 ACK_VAR = "NODE_BROKER_ACK"
@@ -241,3 +246,130 @@ def node_bridges(bridge_lines: list[str], auto: dict[str, bool]) -> list[tuple[s
     if {"NODE_MESSAGE_LOCAL", "MEDIATED_MESSAGE_LOCAL"} <= sources:
         raise ValueError("bridge: NODE_MESSAGE_LOCAL (unmediated) and MEDIATED_MESSAGE_LOCAL (mediated) exclude each other")
     return bridges
+
+
+# --- the MOOSApp shells -------------------------------------------------------------------------
+
+class BrokerApp(MOOSApp):
+    """What both broker apps share: mail dispatch with per-message errors, posting, warnings."""
+
+    state: BrokerState
+    handlers: dict[str, str] = {}  # variable -> name of the method that takes its mail
+
+    def read_common(self) -> None:
+        community = self.mission.community if self.mission else "#1"
+        self.hostip = (self.config.get("hostip") or (self.mission.server_host if self.mission else "localhost")).strip()
+        self.port_db = self.mission.server_port if self.mission else 9000
+        self.community = community
+
+    def on_connect(self) -> None:
+        for var in self.handlers:
+            self.register(var)
+
+    def on_new_mail(self, mail: list[MOOSMsg]) -> None:
+        for msg in mail:
+            method = self.handlers.get(msg.key)
+            if method is None:
+                continue
+            try:
+                self.post(getattr(self, method)(msg) or [])
+            except ValueError as exc:
+                log.warning("%s: %s from %s@%s dropped: %s", self.name, msg.key, msg.source, msg.community, exc)
+        self.report_warnings()
+
+    def iterate(self) -> None:
+        self.post(self.state.iterate(self.moos_time()))
+        self.report_warnings()
+
+    def post(self, posts: list[Post]) -> None:
+        for key, value in posts:
+            self.notify(key, value)
+
+    def report_warnings(self) -> None:
+        while self.state.warnings:
+            log.warning("%s: %s", self.name, self.state.warnings.pop(0))
+
+    def on_host_info(self, msg: MOOSMsg) -> None:
+        self.state.on_host_info(msg.string, msg.community)
+
+    def on_input_summary(self, msg: MOOSMsg) -> None:
+        self.state.on_input_summary(msg.string, self.hostip, self.port_db, self.time_warp)
+
+    def auto_switches(self, names) -> dict[str, bool]:
+        return {name: config_bool(self.config, name, True) for name in names}
+
+
+class NodeBroker(BrokerApp):
+    """uFldNodeBroker: pings the shoreside(s) through pShare until one acknowledges, then asks pShare
+    to bridge the configured variables (NODE_REPORT_LOCAL -> NODE_REPORT, ...) to that shore.
+
+    Usage: uFldNodeBroker mission.moos [alias]  (reads its ProcessConfig block)
+    The host record in the pings comes from PHI_HOST_INFO if a pHostInfo runs, otherwise from the
+    mission (Community, ServerHost, ServerPort, MOOSTimeWarp) and pShare's PSHARE_INPUT_SUMMARY.
+    """
+
+    default_name = "uFldNodeBroker"
+    example_config = """\
+ProcessConfig = uFldNodeBroker
+{
+  AppTick   = 1
+  CommsTick = 1
+
+  // Where a shoreside pShare listens (repeatable; a repeat is a warning)
+  try_shore_host = pshare_route=localhost:9200
+
+  // Variables bridged to every shore that acknowledges (repeatable); alias defaults to src
+  bridge = src=NODE_REPORT_LOCAL, alias=NODE_REPORT
+  bridge = src=NODE_MESSAGE_LOCAL, alias=NODE_MESSAGE
+
+  auto_bridge_appcast     = true   // bridge APPCAST
+  auto_bridge_realmcast   = true   // bridge REALMCAST, WATCHCAST, REALMCAST_CHANNELS
+  auto_bridge_pshare_vars = true   // bridge NODE_PSHARE_VARS
+
+  hostip = localhost               // default: ServerHost; used when no pHostInfo runs
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  PHI_HOST_INFO         this community's host record (from pHostInfo, if one runs)
+  PSHARE_INPUT_SUMMARY  pShare's input routes (stand-in for PHI_HOST_INFO)
+  NODE_BROKER_ACK       a shore's acknowledgement (host record,status=..,key=<i>,id=..);
+                        acks from this vehicle's own community are ignored
+  TRY_SHORE_HOST        pshare_route=<ip>:<port>: one more shore to ping
+
+PUBLICATIONS:
+  PSHARE_CMD            cmd=output,src_name=NODE_BROKER_PING_<i>,dest_name=NODE_BROKER_PING,route=<shore>
+                        (until a shore answers), then one per bridge:
+                        cmd=output,src_name=<src>,dest_name=<alias>,route=<shore>
+  NODE_BROKER_PING_<i>  <host record>,time=<utc>,key=<i>  every 20 s (5 s while unanswered)
+  NODE_PSHARE_VARS      comma list of the bridged aliases
+"""
+    handlers = {
+        "PHI_HOST_INFO": "on_host_info",
+        "PSHARE_INPUT_SUMMARY": "on_input_summary",
+        "NODE_BROKER_ACK": "on_ack",
+        "TRY_SHORE_HOST": "on_try_shore_host",
+    }
+
+    def on_startup(self) -> None:
+        self.read_common()
+        bridges = node_bridges(self.config.get_all("bridge"), self.auto_switches(NODE_AUTO_BRIDGES))
+        self.state = NodeBrokerState(self.community, bridges=bridges)
+        for i, line in enumerate(self.config.get_all("try_shore_host")):
+            self.state.add_shore(parse_shore_route(line, f"try_shore_host #{i + 1}"))
+        if not self.state.shores:
+            log.warning("%s: no try_shore_host; waiting for TRY_SHORE_HOST mail", self.name)
+        self.report_warnings()
+
+    def on_ack(self, msg: MOOSMsg) -> list[Post]:
+        return self.state.on_ack(msg.string, msg.community, self.moos_time())
+
+    def on_try_shore_host(self, msg: MOOSMsg) -> None:
+        self.state.add_shore(parse_shore_route(msg.string, f"TRY_SHORE_HOST from {msg.source}"))
+
+    def status_fields(self) -> dict:
+        shores = [s.community or s.route for s in self.state.shores if s.last_ack is not None]
+        return {"shores": len(self.state.shores), "acked_by": ":".join(shores)}
+
+
+main = NodeBroker.main

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from moosdb_py.message import MOOSMsg
 from oilspill_moos.node_broker import (
     ACK_VAR,
+    BrokerApp,
     BrokerState,
     HostRecord,
     Post,
@@ -240,3 +242,82 @@ def shore_bridges(
         if auto.get(switch, True) and (var, var) not in bridges:
             bridges.append((var, var))
     return bridges, qvars
+
+
+class ShoreBroker(BrokerApp):
+    """uFldShoreBroker: acknowledges every vehicle that pings (NODE_BROKER_PING, through pShare) and
+    asks the shoreside pShare to bridge variables to it: `qbridge = X` sends shoreside X_ALL to every
+    vehicle's X and X_<VNAME> to that vehicle's X; `bridge = src=..,alias=..` with $V (upper-case
+    vehicle name), $v (as given) and $N (1-based vehicle index) in src.
+
+    Usage: uFldShoreBroker mission.moos [alias]  (reads its ProcessConfig block)
+    The acks carry this community's host record: PHI_HOST_INFO if a pHostInfo runs, otherwise one
+    built from the mission and pShare's PSHARE_INPUT_SUMMARY.
+    """
+
+    default_name = "uFldShoreBroker"
+    example_config = """\
+ProcessConfig = uFldShoreBroker
+{
+  AppTick   = 1
+  CommsTick = 1
+
+  // qbridge = X is short for bridge = src=X_ALL,alias=X and bridge = src=X_$V,alias=X
+  qbridge = DEPLOY, RETURN, STATION_KEEP, MOOS_MANUAL_OVERRIDE
+
+  // src may hold $V (vehicle name in upper case), $v (as given), $N (vehicle index, from 1)
+  bridge  = src=RETURN_$V, alias=RETURN
+
+  auto_bridge_appcast   = true    // qbridge APPCAST_REQ
+  auto_bridge_realmcast = true    // qbridge REALMCAST_REQ
+  auto_bridge_mhash     = true    // bridge MISSION_HASH
+
+  keyword  =                      // pings with another keyword get status=keyword_mismatch
+  try_vnode = route=10.0.0.5:9201 // (repeatable) offer this shore to a vehicle by address
+  hostip   = localhost            // default: ServerHost; used when no pHostInfo runs
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  NODE_BROKER_PING       a vehicle's host record (bridged by its pShare); local ones are ignored
+  PHI_HOST_INFO          this community's host record (from pHostInfo, if one runs)
+  PSHARE_INPUT_SUMMARY   pShare's input routes (stand-in for PHI_HOST_INFO)
+  PSHARE_OUTPUT_SUMMARY  what pShare already forwards (those bridges are not requested again)
+
+PUBLICATIONS:
+  NODE_BROKER_ACK_<VNAME>  <shore host record>,status=<ok|timewarp (a!=b)|keyword_mismatch>,key=<k>,id=<n>
+                           every Iterate for each vehicle heard from in the last 10 s
+  NODE_BROKER_VACK         <vname>, with each ack
+  PSHARE_CMD               cmd=output,src_name=<src, $V expanded>,dest_name=<alias>,route=<vehicle iroutes>
+  TRY_SHORE_HOST           pshare_route=<this shore's route>   (only with try_vnode)
+  UFSB_NODE_COUNT          number of vehicles known (on change, or every 30 s)
+  UFSB_QBRIDGE_VARS        comma list of the qbridge variables
+  UFSB_BRIDGE_VARS         comma list of every bridge source
+"""
+    handlers = {
+        "NODE_BROKER_PING": "on_ping",
+        "PHI_HOST_INFO": "on_host_info",
+        "PSHARE_INPUT_SUMMARY": "on_input_summary",
+        "PSHARE_OUTPUT_SUMMARY": "on_output_summary",
+    }
+
+    def on_startup(self) -> None:
+        self.read_common()
+        switches = self.auto_switches([*SHORE_AUTO_QBRIDGES, *SHORE_AUTO_BRIDGES])
+        bridges, qvars = shore_bridges(self.config.get_all("bridge"), self.config.get_all("qbridge"), switches)
+        vnodes = [parse_vnode_route(line, f"try_vnode #{i + 1}") for i, line in enumerate(self.config.get_all("try_vnode"))]
+        keyword = strip_blanks(self.config.get("keyword") or "")
+        self.state = ShoreBrokerState(self.community, bridges=bridges, qbridge_vars=qvars, keyword=keyword,
+                                      vnode_routes=vnodes)
+
+    def on_ping(self, msg: MOOSMsg) -> list[Post]:
+        return self.state.on_ping(msg.string, msg.community, self.moos_time())
+
+    def on_output_summary(self, msg: MOOSMsg) -> None:
+        self.state.on_output_summary(msg.string)
+
+    def status_fields(self) -> dict:
+        return {"nodes": ":".join(self.state.nodes)}
+
+
+main = ShoreBroker.main

@@ -22,7 +22,6 @@ from moosdb_py.share import (
     parse_input,
     parse_output,
     parse_route,
-    wildcard_match,
 )
 
 
@@ -118,12 +117,6 @@ def test_config_lines_and_commands():
                        ("cmd=output,src_name=A,route=x:1,frequency=fast", "frequency"), ("cmd=input", "route")]:
         with pytest.raises(ShareConfigError, match=match):
             parse_command(bad, [])
-
-
-def test_wildcard_match_is_moos_glob():
-    assert wildcard_match("NAV_*", "NAV_X") and wildcard_match("?AV_X", "NAV_X")
-    assert not wildcard_match("nav_*", "NAV_X") and not wildcard_match("NAV_?", "NAV_XY")
-    assert wildcard_match("[a]*", "[a]b")
 
 
 def msg(key, value="v", source="app", time=0.0):
