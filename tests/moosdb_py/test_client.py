@@ -150,3 +150,30 @@ def test_client_speaks_like_the_captured_async_client():
         await task
         server.close()
     _run(scenario())
+
+
+def test_pymoos_style_comms_facade(moosdb_server):
+    from helpers import wait_until
+    from moosdb_py.comms import comms
+
+    sub, pub = comms(), comms()
+    sub.set_on_connect_callback(lambda: sub.register("Z", 0) and sub.register("W*", "*", 0))
+    mail_calls = []
+    sub.set_on_mail_callback(lambda: mail_calls.append(1))
+    sub.run("localhost", moosdb_server.port, "script_sub")
+    pub.run("localhost", moosdb_server.port, "script_pub")
+    assert sub.wait_until_connected(5000) and pub.wait_until_connected(5000)
+    sub.notify("Z", 0.0)     # comes back once the DB has taken the registrations
+    got = []
+    wait_until(lambda: got.extend(sub.fetch()) or got)
+    pub.notify("Z", 1.5)
+    pub.notify("Z", "text", "aux_src", 1234.0)   # "Z" is a double: the DB rejects this string
+    pub.notify_binary("WB", b"\x00\x01")
+    pub.notify("Z", 2.5, "aux_src", 1234.0)
+    wait_until(lambda: got.extend(sub.fetch()) or len(got) >= 4)
+    assert [(m.key, m.value) for m in got] == [("Z", 0.0), ("Z", 1.5), ("WB", b"\x00\x01"), ("Z", 2.5)]
+    assert (got[-1].source_aux, got[-1].time, got[-1].source) == ("aux_src", 1234.0, "script_pub")
+    assert mail_calls and sub.get_community_name() == "#1" and pub.get_published() == ["WB", "Z"]
+    sub.close()
+    pub.close()
+    assert not sub.is_connected()
