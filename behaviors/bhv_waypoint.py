@@ -266,6 +266,8 @@ class BHV_Waypoint(IvPBehavior):
 
     def objective(self, osx: float, osy: float, heading: float) -> IvPFunction:
         sx, sy = self.steering_point(osx, osy)
+        nx, ny = self.points[self.ix]
+        self.post_point("trackpt", sx, sy, active=bool(distance(sx, sy, nx, ny) > 5))
         cruise = self.cruise_speed(osx, osy)
         spd_var, crs_var = self.domain.var("speed"), self.domain.var("course")
         if self.ipf_type == "zaic_spd":
@@ -281,8 +283,15 @@ class BHV_Waypoint(IvPBehavior):
                       self.ratio, 100 - self.ratio, self.pwt)
 
     # ---- life cycle ---------------------------------------------------------------------
+    def post_point(self, label: str, x: float, y: float, active: bool) -> None:
+        self.post("VIEW_POINT", f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},"
+                  f"active={str(active).lower()}", key=label)
+
     def on_run_to_idle(self) -> None:
         self.cpa = None
+        if len(self.points):
+            for label in ("nextpt", "trackpt"):
+                self.post_point(label, *self.points[self.ix], active=False)
         self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name},active=false")
         if self.reset_on_idle:
             self.set_points(self.points)
@@ -334,8 +343,7 @@ class BHV_Waypoint(IvPBehavior):
         if self.dist_prev_var:
             self.post(self.dist_prev_var, round(float(distance(osx, osy, *self.prev)), 2))
         self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name}")
-        self.post("VIEW_POINT", f"x={fmt_num(nx)},y={fmt_num(ny)},label={self.ownship}'s nextpt,active=true",
-                  key="next")
+        self.post_point("nextpt", nx, ny, active=True)
         return self.objective(osx, osy, heading)
 
     def on_update_applied(self) -> None:

@@ -72,6 +72,9 @@ def test_alpha_survey_visits_every_waypoint_in_order_and_returns(corpus, domain)
     assert math.hypot(boat.x - 0, boat.y + 20) < 3
     assert posts["IVPHELM_ALLSTOP"] == "NothingToDo"
     assert any(v == "CINFO" for _, v, _ in log) and posts["INFO"] == "BHV_Waypoint"
+    views = [val for _, v, val in log if v == "VIEW_POINT"]
+    assert any("alpha's trackpt,active=true" in val for val in views)
+    assert views[-1].endswith("active=false")   # erased when the return behaviour went idle
     deaths = [val for _, v, val in log if v == "IVPHELM_LIFE_EVENT"]
     assert deaths == []  # both waypoint behaviours are perpetual
 
