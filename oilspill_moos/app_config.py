@@ -14,7 +14,35 @@ class ConfigLike(Protocol):
     def get(self, key: str, default=None): ...
 
 
+# Parameters every MOOS app's block may hold; they are read by the MOOSApp base.
+MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxappticks", "iteratemode", "verbose", "debug"})
+
 TRUE_WORDS = {"true", "yes", "on", "1"}
+
+
+class ConfigValueError(ValueError):
+    """A bad parameter value; `key` is the parameter, so the app can point at its file:line."""
+
+    def __init__(self, what: str, message: str):
+        self.key = what.split()[0]
+        super().__init__(f"{what}: {message}")
+
+
+def read_params(config, reader):
+    """`reader(config)`, with a bad value reported at its mission-file line (`file:line: key: ...`)."""
+    try:
+        return reader(config)
+    except ConfigValueError as err:
+        entry = config.entry(err.key) if hasattr(config, "entry") else None
+        if entry is None:
+            raise
+        raise entry.source.error(str(err)) from None
+
+
+def unhandled_entries(config, known: set[str] | frozenset[str]) -> list[str]:
+    """`file:line: key` for each parameter of the block that the app does not use."""
+    return [f"{entry.source}: unhandled parameter {entry.key!r}" for entry in getattr(config, "entries", [])
+            if entry.key.lower() not in known and entry.key.lower() not in MOOS_APP_KEYS]
 FALSE_WORDS = {"false", "no", "off", "0"}
 
 
@@ -24,18 +52,18 @@ def parse_bool(text: str, what: str) -> bool:
         return True
     if word in FALSE_WORDS:
         return False
-    raise ValueError(f"{what}: expected true or false, got {text!r}")
+    raise ConfigValueError(what, f"expected true or false, got {text!r}")
 
 
 def parse_float(text: str, what: str, lo: float | None = None, hi: float | None = None) -> float:
     try:
         value = float(str(text).strip())
     except ValueError:
-        raise ValueError(f"{what}: expected a number, got {text!r}") from None
+        raise ConfigValueError(what, f"expected a number, got {text!r}") from None
     if not math.isfinite(value):
-        raise ValueError(f"{what}: expected a finite number, got {text!r}")
+        raise ConfigValueError(what, f"expected a finite number, got {text!r}")
     if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise ValueError(f"{what}: {value:g} is outside [{lo}, {hi}]")
+        raise ConfigValueError(what, f"{value:g} is outside [{lo}, {hi}]")
     return value
 
 

@@ -5,10 +5,15 @@
 """
 from __future__ import annotations
 
+import logging
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
-from oilspill_moos.app_config import ConfigLike, config_bool, config_float
+from moosdb_py.app import MOOSApp
+from oilspill_moos.app_config import ConfigLike, config_bool, config_float, read_params, unhandled_entries
+
+log = logging.getLogger("oilspill_moos.marine_pid")
 
 # The reference averages the derivative over this many recent finite differences.
 DERIVATIVE_HISTORY = 9
@@ -162,3 +167,182 @@ class PIDEngine:
         thrust = self.desired_thrust(desired_speed, speed, time)
         rudder = self.desired_rudder(desired_heading, heading, time) if thrust > 0.0 else 0.0
         return rudder, thrust
+
+
+# (key, label in PID_STALE, threshold attribute) for the inputs whose age is checked.
+STALENESS_CHECKS = (
+    ("DESIRED_HEADING", "DesHdg", "tardy_helm_threshold"),
+    ("DESIRED_SPEED", "DesSpd", "tardy_helm_threshold"),
+    ("DESIRED_DEPTH", "DesDepth", "tardy_helm_threshold"),
+    ("NAV_HEADING", "NavHdg", "tardy_nav_threshold"),
+    ("NAV_SPEED", "NavSpd", "tardy_nav_threshold"),
+    ("NAV_DEPTH", "NavDepth", "tardy_nav_threshold"),
+)
+PID_CONFIG_KEYS = frozenset(
+    {f"{loop}_pid_{gain}" for loop in ("yaw", "speed", "z_to_pitch", "pitch")
+     for gain in ("kp", "kd", "ki", "integral_limit", "ki_limit")}
+    | {"maxrudder", "maxthrust", "maxpitch", "maxelevator", "speed_factor", "depth_control",
+       "tardy_helm_threshold", "tardy_nav_threshold", "simulation", "ignore_nav_yaw", "pid_verbose",
+       "active_start"})
+DEPTH_INPUTS = ("DESIRED_DEPTH", "NAV_DEPTH")
+# Mail stamped further than this from our clock is from a confused process and is dropped.
+MAX_MAIL_SKEW = 360.0
+
+
+class MarinePID(MOOSApp):
+    """pMarinePID (pMarinePIDV22): turns the helm's DESIRED_HEADING/SPEED into DESIRED_RUDDER/THRUST.
+
+    Starts overridden: it drives only after MOOS_MANUAL_OVERRIDE = false (and stops, posting
+    zeros once, on MOOS_MANUAL_OVERRIDE = true). While it has control it posts every
+    iteration; outputs are zero until desired and nav values have all arrived, and while any
+    of them is older than its tardy threshold (then PID_STALE says which). With speed_factor
+    the thrust is DESIRED_SPEED * speed_factor; otherwise an incremental speed PID. Surface
+    craft need depth_control = false.
+    """
+
+    default_name = "pMarinePID"
+    example_config = """\
+ProcessConfig = pMarinePIDV22
+{
+  AppTick   = 20
+  CommsTick = 20
+
+  depth_control = true       // false for surface craft, else it waits for depth inputs
+  speed_factor  = 0          // non-zero: thrust = DESIRED_SPEED * speed_factor, speed PID bypassed
+
+  yaw_pid_kp             = 0     // heading loop (missing gains are 0: it never steers)
+  yaw_pid_kd             = 0
+  yaw_pid_ki             = 0
+  yaw_pid_integral_limit = 0     // alias yaw_pid_ki_limit
+  speed_pid_kp             = 0   // speed loop (incremental: thrust += PID)
+  speed_pid_kd             = 0
+  speed_pid_ki             = 0
+  speed_pid_integral_limit = 0
+  z_to_pitch_pid_kp = 0          // depth loop: depth error -> desired pitch
+  z_to_pitch_pid_kd = 0
+  z_to_pitch_pid_ki = 0
+  z_to_pitch_pid_integral_limit = 0
+  pitch_pid_kp = 0               // pitch error -> elevator
+  pitch_pid_kd = 0
+  pitch_pid_ki = 0
+  pitch_pid_integral_limit = 0
+
+  maxrudder   = 100
+  maxthrust   = 100
+  maxpitch    = 15
+  maxelevator = 13
+
+  tardy_helm_threshold = 2.0     // s: older desired values make the PID stale
+  tardy_nav_threshold  = 2.0     // s: older nav values make the PID stale
+  simulation      = false        // skip the staleness check (then it never gains control, as in MOOS)
+  ignore_nav_yaw  = false        // do not take the heading from NAV_YAW
+  verbose         = false        // accepted for compatibility
+  active_start    = false        // accepted, no effect: MOOS_MANUAL_OVERRIDE=false starts it
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  DESIRED_HEADING, DESIRED_SPEED, DESIRED_DEPTH (from the helm)
+  NAV_HEADING, NAV_SPEED, NAV_DEPTH, NAV_PITCH, NAV_YAW (from the simulator / navigation)
+  MOOS_MANUAL_OVERRIDE (and the MOOS spelling MOOS_MANUAL_OVERIDE) = true|false
+  SPEED_FACTOR (double: replaces the configured speed_factor)
+PUBLICATIONS:
+  DESIRED_RUDDER, DESIRED_THRUST (every iteration while it has control),
+  DESIRED_ELEVATOR (with depth_control)
+  PID_HAS_CONTROL = true|false, PID_STALE = "Stale DesHdg:2.61 ..." when inputs are old
+"""
+
+    def on_startup(self) -> None:
+        self.params = read_params(self.config, PIDParams.from_config)
+        for warning in unhandled_entries(self.config, PID_CONFIG_KEYS):
+            log.warning(warning)
+        self.engine = PIDEngine(self.params)
+        self.overridden = True
+        self.values: dict[str, float] = {}
+        self.times: dict[str, float] = {}
+        self.stale_report = ""
+
+    def on_connect(self) -> None:
+        for key in ("DESIRED_HEADING", "DESIRED_SPEED", "DESIRED_DEPTH", "NAV_HEADING", "NAV_SPEED",
+                    "NAV_DEPTH", "NAV_PITCH", "NAV_YAW", "MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE",
+                    "SPEED_FACTOR"):
+            self.register(key)
+
+    def on_new_mail(self, mail) -> None:
+        now = self.moos_time()
+        for msg in mail:
+            if msg.time > 0 and abs(now - msg.time) > MAX_MAIL_SKEW:
+                continue
+            key = msg.key
+            if key in ("MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE"):
+                self._set_override(str(msg.value).strip().lower())
+            elif key == "SPEED_FACTOR" and msg.is_double():
+                self.engine.speed_factor = msg.double
+            elif msg.is_double():
+                value = msg.double
+                if key == "NAV_YAW":
+                    if self.params.ignore_nav_yaw:
+                        continue
+                    key, value = "NAV_HEADING", (-math.degrees(value)) % 360.0
+                self.values[key] = value
+                self.times[key] = msg.time if msg.time > 0 else now
+
+    def _set_override(self, word: str) -> None:
+        if word == "false":
+            if self.overridden:
+                self.values.clear()
+                self.times.clear()
+                self.engine.reset()
+            self.overridden = False
+            self.notify("PID_HAS_CONTROL", "true")
+        elif word == "true" and not self.overridden:
+            self.overridden = True
+            self.notify("PID_HAS_CONTROL", "false")
+            self._post(0.0, 0.0, 0.0)
+
+    def _required(self) -> tuple[str, ...]:
+        base = ("DESIRED_HEADING", "DESIRED_SPEED", "NAV_HEADING", "NAV_SPEED")
+        return base + DEPTH_INPUTS if self.params.depth_control else base
+
+    def _stale(self, now: float) -> str:
+        if self.params.simulation:
+            return ""
+        required = self._required()
+        ages = [f"{label}:{now - self.times[key]:.2f}" for key, label, limit in STALENESS_CHECKS
+                if key in required and now - self.times[key] > getattr(self.params, limit)]
+        return "Stale " + " ".join(ages) if ages else ""
+
+    def iterate(self) -> None:
+        if self.overridden:
+            return
+        now = self.moos_time()
+        if any(key not in self.values for key in self._required()):
+            self._post(0.0, 0.0, 0.0)
+            return
+        stale = self._stale(now)
+        if stale:
+            if stale != self.stale_report:
+                self.notify("PID_STALE", stale)
+            self.stale_report = stale
+            self._post(0.0, 0.0, 0.0)
+            return
+        self.stale_report = ""
+        v = self.values
+        rudder, thrust = self.engine.control(v["DESIRED_HEADING"], v["DESIRED_SPEED"], v["NAV_HEADING"],
+                                             v["NAV_SPEED"], now)
+        elevator = 0.0
+        if self.params.depth_control:
+            elevator = self.engine.desired_elevator(v["DESIRED_DEPTH"], v["NAV_DEPTH"], v.get("NAV_PITCH", 0.0), now)
+        self._post(rudder, thrust, elevator)
+
+    def _post(self, rudder: float, thrust: float, elevator: float) -> None:
+        self.notify("DESIRED_RUDDER", rudder)
+        self.notify("DESIRED_THRUST", thrust)
+        if self.params.depth_control:
+            self.notify("DESIRED_ELEVATOR", elevator)
+
+    def status_fields(self) -> dict:
+        return {"has_control": not self.overridden, "stale": self.stale_report or "no"}
+
+
+main = MarinePID.main

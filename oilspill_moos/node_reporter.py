@@ -6,20 +6,27 @@ field order and number formatting follow field-apps.md section 3 to the byte.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import (
     ConfigLike,
+    ConfigValueError,
     config_bool,
     config_float,
     config_str,
     format_number,
     parse_float,
+    read_params,
+    unhandled_entries,
 )
 from oilspill_moos.geodesy import LocalGrid
+
+log = logging.getLogger("oilspill_moos.node_reporter")
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
 
@@ -40,7 +47,7 @@ class PlatReportInput:
     def parse(cls, text: str) -> "PlatReportInput":
         parts = [p.strip() for p in str(text).split(",") if p.strip()]
         if not parts or "=" in parts[0]:
-            raise ValueError(f"plat_report_input: expected 'VAR[,gap=secs][,alias=NAME]', got {text!r}")
+            raise ConfigValueError("plat_report_input", f"expected 'VAR[,gap=secs][,alias=NAME]', got {text!r}")
         item = cls(parts[0])
         for part in parts[1:]:
             key, sep, value = part.partition("=")
@@ -50,7 +57,7 @@ class PlatReportInput:
             elif key == "alias" and sep and value.strip():
                 item.alias = value.strip()
             else:
-                raise ValueError(f"plat_report_input: unknown field {part!r} in {text!r}")
+                raise ConfigValueError("plat_report_input", f"unknown field {part!r} in {text!r}")
         return item
 
 
@@ -77,12 +84,12 @@ class ReporterParams:
     def from_config(cls, cfg: ConfigLike, plat_inputs: list[str] = ()) -> "ReporterParams":
         policy = config_str(cfg, "crossfill_policy", "literal").lower()
         if policy not in CROSSFILL_POLICIES:
-            raise ValueError(f"crossfill_policy: {policy!r} is not one of {', '.join(CROSSFILL_POLICIES)}")
+            raise ConfigValueError("crossfill_policy", f"{policy!r} is not one of {', '.join(CROSSFILL_POLICIES)}")
         ptype = cfg.get("platform_type", None) or cfg.get("vessel_type", None) or "unknown"
         group = cfg.get("platform_group", None) or cfg.get("group", None) or ""
         output = config_str(cfg, "node_report_output", "NODE_REPORT_LOCAL")
         if not output.replace("_", "").isalnum():
-            raise ValueError(f"node_report_output: {output!r} is not a MOOS variable name")
+            raise ConfigValueError("node_report_output", f"{output!r} is not a MOOS variable name")
         return cls(
             platform_type=str(ptype).strip(),
             platform_color=config_str(cfg, "platform_color", ""),
@@ -284,3 +291,103 @@ class NodeReportBuilder:
         parts += [f"{item.alias or item.var}={self.plat_values[item.var]}"
                   for item in self.params.plat_report_inputs if item.var in self.plat_values]
         return ",".join(parts)
+
+
+REPORTER_CONFIG_KEYS = frozenset({
+    "platform_type", "vessel_type", "platform_color", "platform_length", "platform_beam", "platform_group",
+    "group", "platform_vsource", "terse_reports", "blackout_interval", "blackout_variance", "node_report_output",
+    "plat_report_input", "plat_report_output", "nohelm_threshold", "crossfill_policy", "coord_policy_global",
+    "paused"})
+REPORTER_INPUTS = ("NAV_X", "NAV_Y", "NAV_LAT", "NAV_LONG", "NAV_SPEED", "NAV_HEADING", "NAV_DEPTH", "NAV_YAW",
+                   "NAV_TRANSP", "IVPHELM_SUMMARY", "IVPHELM_STATE", "IVPHELM_ALLSTOP", "AUX_MODE",
+                   "LOAD_WARNING", "THRUST_MODE_REVERSE", "NODE_GROUP_UPDATE", "NODE_COLOR_CHANGE",
+                   "PNR_PAUSE", "PLATFORM_COLOR")
+
+
+class NodeReporter(MOOSApp):
+    """pNodeReporter: posts this vehicle's NODE_REPORT_LOCAL every iteration.
+
+    The report is the comma list MOOS viewers, the helm's contact ledger and the shore
+    broker read: NAME (the Community), X, Y, SPD, HDG, DEP, LAT, LON, TYPE, COLOR, GROUP,
+    MODE (the helm's state or mode, NOHELM-EVER / NOHELM-<secs> without a helm), ALLSTOP,
+    INDEX, YAW, TIME, LENGTH, ... Numbers have at most 2 decimals (8 for LAT/LON). The first
+    report also goes to NODE_REPORT_LOCAL_FIRST. Variables named by plat_report_input are
+    bundled into PLATFORM_REPORT_LOCAL when they change.
+    """
+
+    default_name = "pNodeReporter"
+    example_config = """\
+ProcessConfig = pNodeReporter
+{
+  AppTick   = 2
+  CommsTick = 2
+
+  platform_type    = unknown   // alias vessel_type: kayak, uuv, ship, ...
+  platform_color   =           // e.g. yellow
+  platform_length  = 0         // metres (LENGTH= when > 0)
+  platform_beam    = 0         // metres (BEAM= when > 0)
+  platform_group   =           // alias group
+  platform_vsource =           // VSOURCE=
+  terse_reports    = false     // leave out DEP, YAW, LAT, LON
+  coord_policy_global = false  // report LAT/LON only, no X/Y
+  crossfill_policy = literal   // literal | fill-empty | use-latest | global (x/y <-> lat/lon)
+  nohelm_threshold = 5         // s without IVPHELM_STATE before MODE=NOHELM-<secs>
+  blackout_interval = 0        // s between reports (0 = every iteration)
+  blackout_variance = 0        // s of uniform jitter on the blackout interval
+  node_report_output = NODE_REPORT_LOCAL
+  plat_report_input  =         // VAR[,gap=secs][,alias=NAME], repeatable
+  plat_report_output = PLATFORM_REPORT_LOCAL
+  paused = false               // start without reporting (PNR_PAUSE=false resumes)
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  NAV_X, NAV_Y, NAV_LAT, NAV_LONG, NAV_SPEED, NAV_HEADING, NAV_DEPTH, NAV_YAW, NAV_TRANSP
+  IVPHELM_STATE, IVPHELM_SUMMARY, IVPHELM_ALLSTOP, AUX_MODE, LOAD_WARNING, THRUST_MODE_REVERSE
+  NODE_GROUP_UPDATE, NODE_COLOR_CHANGE, PLATFORM_COLOR, PNR_PAUSE = true|false
+  every plat_report_input variable
+PUBLICATIONS:
+  NODE_REPORT_LOCAL (or node_report_output), NODE_REPORT_LOCAL_FIRST (once)
+  PLATFORM_REPORT_LOCAL (or plat_report_output)
+"""
+
+    def on_startup(self) -> None:
+        params = read_params(self.config, lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input")))
+        for warning in unhandled_entries(self.config, REPORTER_CONFIG_KEYS):
+            log.warning(warning)
+        grid = None
+        name = "unknown"
+        if self.mission is not None:
+            name = self.mission.community or name
+            if self.mission.lat_origin is not None and self.mission.long_origin is not None:
+                grid = LocalGrid(self.mission.lat_origin, self.mission.long_origin)
+        self.builder = NodeReportBuilder(name, params, grid)
+
+    def on_connect(self) -> None:
+        for key in REPORTER_INPUTS:
+            self.register(key)
+        for item in self.builder.params.plat_report_inputs:
+            self.register(item.var)
+
+    def on_new_mail(self, mail) -> None:
+        for msg in mail:
+            self.builder.on_mail(msg.key, msg.value, msg.time)
+
+    def iterate(self) -> None:
+        now = self.moos_time()
+        params = self.builder.params
+        first = self.builder.index == 0
+        report = self.builder.node_report(now)
+        if report is not None:
+            self.notify(params.node_report_output, report, now)
+            if first:
+                self.notify(f"{params.node_report_output}_FIRST", report, now)
+        platform = self.builder.platform_report(now)
+        if platform is not None:
+            self.notify(params.plat_report_output, platform, now)
+
+    def status_fields(self) -> dict:
+        return {"reports": self.builder.index, "mode": self.builder.mode(self.moos_time())}
+
+
+main = NodeReporter.main

@@ -6,19 +6,28 @@ including its quirks, so a mission flies the same laps in our stack as in C++.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import (
     ConfigLike,
+    ConfigValueError,
     config_bool,
     config_float,
     config_str,
+    format_number,
     parse_bool,
     parse_float,
+    read_params,
+    unhandled_entries,
 )
+from oilspill_moos.geodesy import LocalGrid
+
+log = logging.getLogger("oilspill_moos.sim_marine")
 
 # The speed at which the turn rate reaches its configured value (the reference
 # simulator's internal "full speed" of its turn-rate map).
@@ -44,15 +53,15 @@ class NavState:
                 key, _, value = part.partition("=")
                 key = key.strip().lower()
                 if key not in names:
-                    raise ValueError(f"{what}: unknown field {key!r} (expected {', '.join(names)})")
+                    raise ConfigValueError(what, f"unknown field {key!r} (expected {', '.join(names)})")
                 values[key] = parse_float(value, f"{what} {key}")
         elif parts and not any("=" in p for p in parts) and len(parts) <= len(names):
             for key, value in zip(names, parts):
                 values[key] = parse_float(value, f"{what} {key}")
         else:
-            raise ValueError(f"{what}: expected 'x=.., y=.., heading=.., speed=..' or 'x,y,heading,speed', got {text!r}")
+            raise ConfigValueError(what, f"expected 'x=.., y=.., heading=.., speed=..' or 'x,y,heading,speed', got {text!r}")
         state = cls(**values)
-        state.heading %= 360.0
+        state.heading = angle360(state.heading)
         return state
 
 
@@ -78,15 +87,15 @@ class ThrustMap:
                 continue
             thrust, sep, speed = item.partition(":")
             if not sep:
-                raise ValueError(f"thrust_map: {item.strip()!r} is not a thrust:speed pair")
+                raise ConfigValueError("thrust_map", f"{item.strip()!r} is not a thrust:speed pair")
             pairs.append((parse_float(thrust, "thrust_map thrust", -100.0, 100.0),
                           parse_float(speed, "thrust_map speed")))
         thrusts = [t for t, _ in pairs]
         if len(set(thrusts)) != len(thrusts):
-            raise ValueError("thrust_map: a thrust value appears twice")
+            raise ConfigValueError("thrust_map", "a thrust value appears twice")
         ordered = sorted(pairs)
         if any(b[1] < a[1] for a, b in zip(ordered, ordered[1:])):
-            raise ValueError("thrust_map: speed must not fall as thrust rises")
+            raise ConfigValueError("thrust_map", "speed must not fall as thrust rises")
         return cls(pairs, thrust_factor, reflect)
 
     @property
@@ -131,7 +140,7 @@ class SimParams:
         start = NavState.parse(start_text) if start_text else NavState()
         for name in ("x", "y", "heading", "speed", "depth"):
             setattr(start, name, config_float(cfg, f"start_{name}", getattr(start, name)))
-        start.heading %= 360.0
+        start.heading = angle360(start.heading)
         factor = config_float(cfg, "thrust_factor", 20.0, lo=0.0)
         reflect = config_bool(cfg, "thrust_reflect", False)
         map_text = cfg.get("thrust_map", None)
@@ -167,7 +176,7 @@ def parse_drift_vector(text: str, what: str) -> tuple[float, float]:
     """`ang,mag` (direction the water flows to, degrees; metres/second) -> (drift_x, drift_y)."""
     parts = str(text).split(",")
     if len(parts) != 2:
-        raise ValueError(f"{what}: expected 'angle,magnitude', got {text!r}")
+        raise ConfigValueError(what, f"expected 'angle,magnitude', got {text!r}")
     ang = parse_float(parts[0], f"{what} angle")
     mag = parse_float(parts[1], f"{what} magnitude")
     rad = math.radians(ang)
@@ -175,7 +184,9 @@ def parse_drift_vector(text: str, what: str) -> tuple[float, float]:
 
 
 def angle360(deg: float) -> float:
-    return deg % 360.0
+    """Degrees in [0, 360); a tiny negative angle would otherwise round to 360.0."""
+    deg %= 360.0
+    return 0.0 if deg >= 360.0 else deg
 
 
 @dataclass
@@ -276,3 +287,172 @@ class MarineModel:
         st.speed = mean_speed  # the reference keeps the mean, so speed converges geometrically
         hog = angle360(math.degrees(math.atan2(vx, vy))) if (vx or vy) else psi1
         return StepResult(math.hypot(vx, vy), hog)
+
+
+class SimMarine(MOOSApp):
+    """uSimMarine (uSimMarineV22): a simulated surface vehicle.
+
+    Integrates the kinematic boat model every AppTick from the last DESIRED_RUDDER and
+    DESIRED_THRUST, and posts the navigation solution (<prefix>_X, _Y, _HEADING, _SPEED,
+    _DEPTH, _LAT, _LONG, ...) on every second iteration, as uSimMarineV22 does. Time is
+    MOOS time, so MOOSTimeWarp speeds the simulation up. An external current can be set in
+    the config (drift_x, drift_y, drift_vector) or at run time (DRIFT_X, DRIFT_VECTOR, ...).
+    LatOrigin/LongOrigin in the mission enable <prefix>_LAT/_LONG.
+    """
+
+    default_name = "uSimMarine"
+    example_config = """\
+ProcessConfig = uSimMarineV22
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  start_pos   = x=0, y=0, heading=0, speed=0   // or x,y,heading,speed[,depth]
+  // start_x = 0, start_y = 0, start_heading = 0, start_speed = 0, start_depth = 0
+  prefix      = USM        // output prefix; missions use NAV
+  turn_rate   = 70         // 0..100, deg/s at full rudder, speed >= 5 m/s, thrust 50
+  thrust_map  =            // thrust:speed pairs, e.g. 0:0, 20:1, 40:2, 60:3, 80:4, 100:5
+  thrust_factor  = 20      // speed = thrust / thrust_factor when there is no thrust_map
+  thrust_reflect = false   // negative thrust mirrors the positive map
+  max_acceleration = 0     // m/s^2, 0 = unlimited
+  max_deceleration = 0.5   // m/s^2, 0 = unlimited
+  turn_spd_loss    = 0.85  // 0..1, fraction of speed lost at full rudder
+  max_speed        = 5     // NAV_SPEED is clipped to this
+  max_rudder_degs_per_sec = 0   // rudder rate limit, 0 = a message moves it by at most 100
+  drift_x      = 0         // current, m/s east
+  drift_y      = 0         // current, m/s north
+  drift_vector = 0,0       // current as angle(deg, towards),magnitude(m/s); added to drift_x/y
+  rotate_speed = 0         // deg/s of external rotation
+  buoyancy_rate        = 0.025  // m/s, positive rises
+  max_depth_rate       = 0.5    // m/s at full elevator
+  max_depth_rate_speed = 2.0    // speed at which the full depth rate is reached
+  default_water_depth  = 0      // > 0 enables <prefix>_ALTITUDE
+  sim_pause    = false     // start paused (USM_SIM_PAUSED = false resumes)
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  DESIRED_RUDDER, DESIRED_THRUST, DESIRED_ELEVATOR   (double, -100..100)
+  DRIFT_X, DRIFT_Y, CURRENT_X, CURRENT_Y             (double, m/s)
+  DRIFT_VECTOR = ang,mag   DRIFT_VECTOR_ADD = ang,mag   DRIFT_VECTOR_MULT = factor
+  ROTATE_SPEED (deg/s), BUOYANCY_RATE, WATER_DEPTH, USM_TURN_RATE
+  USM_SIM_PAUSED = true|false
+  USM_RESET = true | x=..,y=..,heading=..,speed=..   (back to the start or to that state)
+PUBLICATIONS (every second iteration, with prefix NAV):
+  NAV_X, NAV_Y, NAV_LAT, NAV_LONG, NAV_HEADING, NAV_SPEED, NAV_DEPTH,
+  NAV_HEADING_OVER_GROUND, NAV_SPEED_OVER_GROUND, NAV_ALTITUDE (with a water depth)
+  USM_RESET_COUNT, USM_DRIFT_SUMMARY (when they change)
+"""
+
+    def on_startup(self) -> None:
+        self.params = read_params(self.config, SimParams.from_config)
+        for warning in unhandled_entries(self.config, SIM_CONFIG_KEYS):
+            log.warning(warning)
+        self.model = MarineModel(self.params)
+        self.water_depth = self.params.water_depth
+        self.grid = None
+        if self.mission is not None and self.mission.lat_origin is not None \
+                and self.mission.long_origin is not None:
+            self.grid = LocalGrid(self.mission.lat_origin, self.mission.long_origin)
+        self.iteration = 0
+        self.last_step_time: float | None = None
+        self.last_result = StepResult(0.0, self.model.state.heading)
+        self.reset_count = 0
+        self._drift_summary_posted: str | None = None
+
+    def on_connect(self) -> None:
+        for key in SIM_INPUTS:
+            self.register(key)
+
+    def on_new_mail(self, mail) -> None:
+        for msg in mail:
+            try:
+                self._handle(msg)
+            except ValueError as err:
+                self.notify("USM_WARNING", f"{msg.key} from {msg.source or '?'}: {err}")
+
+    def _handle(self, msg) -> None:
+        key, model = msg.key, self.model
+        if key in ("DESIRED_RUDDER", "DESIRED_THRUST", "DESIRED_ELEVATOR", "DRIFT_X", "DRIFT_Y",
+                   "CURRENT_X", "CURRENT_Y", "ROTATE_SPEED", "BUOYANCY_RATE", "WATER_DEPTH",
+                   "USM_TURN_RATE", "DRIFT_VECTOR_MULT"):
+            value = msg.double if msg.is_double() else parse_float(msg.string, key)
+            if key == "DESIRED_RUDDER":
+                model.set_rudder(value, msg.time)
+            elif key == "DESIRED_THRUST":
+                model.set_thrust(value)
+            elif key == "DESIRED_ELEVATOR":
+                model.set_elevator(value)
+            elif key in ("DRIFT_X", "CURRENT_X"):
+                model.drift_x = value
+            elif key in ("DRIFT_Y", "CURRENT_Y"):
+                model.drift_y = value
+            elif key == "DRIFT_VECTOR_MULT":
+                model.drift_x, model.drift_y = model.drift_x * value, model.drift_y * value
+            elif key == "ROTATE_SPEED":
+                model.rotate_speed = value
+            elif key == "BUOYANCY_RATE":
+                model.buoyancy_rate = value
+            elif key == "WATER_DEPTH":
+                self.water_depth = max(0.0, value)
+            else:
+                model.turn_rate = max(0.0, min(100.0, value))
+        elif key in ("DRIFT_VECTOR", "DRIFT_VECTOR_ADD"):
+            dx, dy = parse_drift_vector(msg.string, key)
+            if key == "DRIFT_VECTOR_ADD":
+                dx, dy = dx + model.drift_x, dy + model.drift_y
+            model.drift_x, model.drift_y = dx, dy
+        elif key == "USM_SIM_PAUSED":
+            model.paused = parse_bool(msg.string if msg.is_string() else str(int(msg.double)), key)
+        elif key == "USM_RESET":
+            text = msg.string.strip() if msg.is_string() else ""
+            model.reset(NavState.parse(text, key) if "=" in text or "," in text else None)
+            self.reset_count += 1
+            self.notify("USM_RESET_COUNT", float(self.reset_count))
+
+    def iterate(self) -> None:
+        now = self.moos_time()
+        if self.last_step_time is not None:
+            self.last_result = self.model.step(now - self.last_step_time)
+        self.last_step_time = now
+        self.iteration += 1
+        if self.iteration % 2 == 0:
+            self._post_nav(now)
+
+    def _post_nav(self, now: float) -> None:
+        s, prefix = self.model.state, self.params.prefix
+        self.notify(f"{prefix}_X", s.x, now)
+        self.notify(f"{prefix}_Y", s.y, now)
+        if self.grid is not None:
+            lat, lon = self.grid.to_latlon(s.x, s.y)
+            self.notify(f"{prefix}_LAT", lat, now)
+            self.notify(f"{prefix}_LONG", lon, now)
+        self.notify(f"{prefix}_HEADING", s.heading, now)
+        self.notify(f"{prefix}_SPEED", min(round(s.speed, 2), self.params.max_speed), now)
+        self.notify(f"{prefix}_DEPTH", s.depth, now)
+        self.notify(f"{prefix}_HEADING_OVER_GROUND", self.last_result.heading_over_ground, now)
+        self.notify(f"{prefix}_SPEED_OVER_GROUND", self.last_result.speed_over_ground, now)
+        if self.water_depth > 0.0:
+            self.notify(f"{prefix}_ALTITUDE", max(0.0, self.water_depth - s.depth), now)
+        summary = (f"ang={format_number(self.model.drift_angle)},mag={format_number(self.model.drift_magnitude)},"
+                   f"xmag={format_number(self.model.drift_x)},ymag={format_number(self.model.drift_y)}")
+        if summary != self._drift_summary_posted:
+            self.notify("USM_DRIFT_SUMMARY", summary, now)
+            self._drift_summary_posted = summary
+
+    def status_fields(self) -> dict:
+        s = self.model.state
+        return {"x": round(s.x, 2), "y": round(s.y, 2), "hdg": round(s.heading, 1), "spd": round(s.speed, 2),
+                "rudder": round(self.model.rudder, 1), "thrust": round(self.model.thrust, 1)}
+
+
+SIM_CONFIG_KEYS = frozenset({
+    "start_pos", "start_x", "start_y", "start_heading", "start_speed", "start_depth", "prefix", "turn_rate",
+    "thrust_map", "thrust_factor", "thrust_reflect", "max_acceleration", "max_deceleration", "turn_spd_loss",
+    "max_speed", "max_rudder_degs_per_sec", "drift_x", "drift_y", "drift_vector", "rotate_speed",
+    "buoyancy_rate", "max_depth_rate", "max_depth_rate_speed", "default_water_depth", "sim_pause"})
+SIM_INPUTS = ("DESIRED_RUDDER", "DESIRED_THRUST", "DESIRED_ELEVATOR", "DRIFT_X", "DRIFT_Y", "CURRENT_X",
+              "CURRENT_Y", "DRIFT_VECTOR", "DRIFT_VECTOR_ADD", "DRIFT_VECTOR_MULT", "ROTATE_SPEED",
+              "BUOYANCY_RATE", "WATER_DEPTH", "USM_TURN_RATE", "USM_SIM_PAUSED", "USM_RESET")
+
+main = SimMarine.main

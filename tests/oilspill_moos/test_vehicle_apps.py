@@ -1,0 +1,188 @@
+"""uSimMarine, pMarinePID and pNodeReporter as MOOS apps against a real moosdb, driven by a scripted client."""
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+import pytest
+
+from helpers import async_wait_until
+from moosdb_py.client import MOOSClient
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.marine_pid import MarinePID
+from oilspill_moos.node_reporter import NodeReporter
+from oilspill_moos.sim_marine import SimMarine
+
+WARP = 10
+BLOCKS = {
+    "uSimMarineV22": """
+  AppTick = 4
+  start_pos = x=0, y=-20, heading=180, speed=0
+  prefix = NAV
+  turn_rate = 95
+  thrust_map = 0:0, 20:1, 40:2, 60:3, 80:4, 100:5
+  turn_spd_loss = 0.4""",
+    "pMarinePIDV22": """
+  AppTick = 10
+  depth_control = false
+  yaw_pid_kp = 0.9
+  yaw_pid_kd = 0.3
+  yaw_pid_ki = 0.3
+  yaw_pid_integral_limit = 0.07
+  speed_factor = 20""",
+    "pNodeReporter": """
+  AppTick = 2
+  platform_type = kayak
+  platform_length = 4""",
+}
+
+
+def write_mission(tmp_path, port, blocks=BLOCKS):
+    path = tmp_path / "vehicle.moos"
+    text = (f"ServerHost = localhost\nServerPort = {port}\nCommunity = alpha\nMOOSTimeWarp = {WARP}\n"
+            "LatOrigin = 43.825300\nLongOrigin = -70.330400\n")
+    text += "".join(f"\nProcessConfig = {name}\n{{{body}\n}}\n" for name, body in blocks.items())
+    path.write_text(text)
+    return path
+
+
+@contextlib.asynccontextmanager
+async def running(apps, port, keys):
+    """Run the apps and a watcher client (registered for `keys`) in this event loop."""
+    watcher = MOOSClient("uScript", port=port, time_warp=WARP)
+    for key in keys:
+        watcher.register(key)
+    tasks = [asyncio.create_task(app.run_async()) for app in apps] + [asyncio.create_task(watcher.run())]
+    try:
+        assert await watcher.wait_connected(5)
+        yield watcher
+    finally:
+        for app in apps:
+            app.stop()
+        watcher.close()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+
+
+def latest(watcher, key):
+    values = [m for m in watcher.inbox if m.key == key]
+    return values[-1] if values else None
+
+
+def value(watcher, key, default=None):
+    msg = latest(watcher, key)
+    return default if msg is None else msg.value
+
+
+def test_sim_posts_nav_every_second_iteration_and_follows_thrust(moosdb_server, tmp_path):
+    async def scenario():
+        sim = SimMarine(write_mission(tmp_path, moosdb_server.port), "uSimMarineV22")
+        keys = ["NAV_X", "NAV_Y", "NAV_LAT", "NAV_LONG", "NAV_SPEED", "NAV_HEADING", "NAV_DEPTH",
+                "NAV_SPEED_OVER_GROUND", "USM_DRIFT_SUMMARY", "USM_RESET_COUNT"]
+        async with running([sim], moosdb_server.port, keys) as w:
+            await async_wait_until(lambda: latest(w, "NAV_X") is not None, 5)
+            assert latest(w, "NAV_Y").double == pytest.approx(-20) and latest(w, "NAV_HEADING").double == 180
+            nav_posts = sum(m.key == "NAV_X" for m in w.inbox)
+            assert abs(nav_posts - sim.iterations / 2) <= 2
+            w.notify("DESIRED_THRUST", 40.0)
+            await async_wait_until(lambda: latest(w, "NAV_SPEED").double >= 1.98, 10)
+            assert latest(w, "NAV_SPEED").source == "uSimMarineV22"
+            await async_wait_until(lambda: latest(w, "NAV_Y").double < -25, 10)
+            x, y = latest(w, "NAV_X").double, latest(w, "NAV_Y").double
+            lat, lon = latest(w, "NAV_LAT").double, latest(w, "NAV_LONG").double
+            assert LocalGrid(43.8253, -70.3304).to_local(lat, lon) == pytest.approx((x, y), abs=2.0)
+            w.notify("DRIFT_VECTOR", "90,0.5")
+            await async_wait_until(lambda: value(w, "USM_DRIFT_SUMMARY", "").startswith("ang=90,mag=0.5"), 5)
+            w.notify("USM_RESET", "x=5, y=6, heading=45")
+            await async_wait_until(lambda: latest(w, "USM_RESET_COUNT") is not None, 5)
+            assert sim.model.state.heading == 45
+    asyncio.run(scenario())
+
+
+def test_pid_takes_control_only_when_unoverridden_and_goes_stale(moosdb_server, tmp_path):
+    async def scenario():
+        pid = MarinePID(write_mission(tmp_path, moosdb_server.port), "pMarinePIDV22")
+        keys = ["DESIRED_RUDDER", "DESIRED_THRUST", "PID_HAS_CONTROL", "PID_STALE"]
+        async with running([pid], moosdb_server.port, keys) as w:
+            def feed():
+                for key, value in (("NAV_HEADING", 350.0), ("NAV_SPEED", 1.0), ("DESIRED_HEADING", 10.0),
+                                   ("DESIRED_SPEED", 2.0)):
+                    w.notify(key, value)
+            feed()
+            await async_wait_until(lambda: pid.iterations > 10, 5)
+            assert latest(w, "DESIRED_THRUST") is None  # overridden from the start
+            w.notify("MOOS_MANUAL_OVERRIDE", "false")
+            await async_wait_until(lambda: latest(w, "PID_HAS_CONTROL"), 5)
+            assert latest(w, "PID_HAS_CONTROL").string == "true"
+            feed()  # control resets the inputs: they must arrive again
+            await async_wait_until(lambda: value(w, "DESIRED_THRUST") == 40.0, 5)
+            assert latest(w, "DESIRED_RUDDER").double > 0  # 350 -> 10: turn right
+            # stop feeding: after 2 warped seconds the inputs are stale and the outputs drop to zero
+            await async_wait_until(lambda: latest(w, "PID_STALE"), 5)
+            assert latest(w, "PID_STALE").string.startswith("Stale DesHdg:")
+            await async_wait_until(lambda: latest(w, "DESIRED_THRUST").double == 0.0, 5)
+            w.notify("MOOS_MANUAL_OVERRIDE", "true")
+            await async_wait_until(lambda: latest(w, "PID_HAS_CONTROL").string == "false", 5)
+    asyncio.run(scenario())
+
+
+def test_sim_and_pid_close_the_loop_on_a_scripted_heading(moosdb_server, tmp_path):
+    """A client stands in for the helm: DESIRED_HEADING=90 at 2 m/s turns the boat east and holds it."""
+    async def scenario():
+        mission = write_mission(tmp_path, moosdb_server.port)
+        sim, pid = SimMarine(mission, "uSimMarineV22"), MarinePID(mission, "pMarinePIDV22")
+        async with running([sim, pid], moosdb_server.port, ["NAV_X", "NAV_HEADING", "NAV_SPEED"]) as w:
+            w.notify("MOOS_MANUAL_OVERRIDE", "false")
+            await async_wait_until(lambda: not pid.overridden, 5)
+
+            def settled():
+                w.notify("DESIRED_HEADING", 90.0)
+                w.notify("DESIRED_SPEED", 2.0)
+                hdg, x = latest(w, "NAV_HEADING"), latest(w, "NAV_X")
+                return hdg and x and abs(hdg.double - 90) < 5 and x.double > 20
+            await async_wait_until(settled, 20, interval=0.05)
+            assert latest(w, "NAV_SPEED").double == pytest.approx(2.0, abs=0.2)
+    asyncio.run(scenario())
+
+
+def test_node_reporter_reports_community_nav_and_helm_mode(moosdb_server, tmp_path):
+    async def scenario():
+        reporter = NodeReporter(write_mission(tmp_path, moosdb_server.port), "pNodeReporter")
+        keys = ["NODE_REPORT_LOCAL", "NODE_REPORT_LOCAL_FIRST"]
+        async with running([reporter], moosdb_server.port, keys) as w:
+            await async_wait_until(lambda: reporter.iterations > 2, 5)
+            assert latest(w, "NODE_REPORT_LOCAL") is None  # no nav yet
+            for key, value in (("NAV_X", 12.5), ("NAV_Y", -40.25), ("NAV_SPEED", 2.0), ("NAV_HEADING", 181.3),
+                               ("NAV_LAT", 43.82494), ("NAV_LONG", -70.3302), ("IVPHELM_STATE", "DRIVE"),
+                               ("IVPHELM_SUMMARY", "iter=2,modes=MODE@ACTIVE:SURVEYING")):
+                w.notify(key, value)
+            await async_wait_until(lambda: sum(m.key == "NODE_REPORT_LOCAL" for m in w.inbox) >= 2, 5)
+            first = latest(w, "NODE_REPORT_LOCAL_FIRST").string
+            assert first.startswith("NAME=alpha,X=12.5,Y=-40.25,SPD=2,HDG=181.3,DEP=0,LAT=43.82494,LON=-70.3302,"
+                                    "TYPE=kayak,MODE=")
+            assert "INDEX=" not in first and first.endswith(",LENGTH=4")
+            second = [m.string for m in w.inbox if m.key == "NODE_REPORT_LOCAL"][1]
+            assert ",MODE=MODE@ACTIVE:SURVEYING,ALLSTOP=unknown,INDEX=1,TIME=" in second
+    asyncio.run(scenario())
+
+
+@pytest.mark.parametrize("app, block, line, word", [
+    (SimMarine, "uSimMarineV22", "turn_rate = 150", "turn_rate"),
+    (MarinePID, "pMarinePIDV22", "depth_control = sometimes", "depth_control"),
+    (NodeReporter, "pNodeReporter", "crossfill_policy = newest", "crossfill_policy"),
+])
+def test_bad_parameter_is_reported_at_its_line(tmp_path, capsys, free_port, app, block, line, word):
+    mission = write_mission(tmp_path, free_port(), {block: f"\n  AppTick = 4\n  {line}"})
+    assert app.main([str(mission), block]) == 1
+    err = capsys.readouterr().err
+    assert f"vehicle.moos:11: {word}:" in err
+
+
+def test_command_line_pages(capsys):
+    for app in (SimMarine, MarinePID, NodeReporter):
+        assert app.main(["--example"]) == 0
+        example = capsys.readouterr().out
+        assert example.startswith("ProcessConfig = ") and "AppTick" in example
+        assert app.main(["--interface"]) == 0
+        assert "SUBSCRIPTIONS" in capsys.readouterr().out
+        assert app.main(["--help"]) == 0
+        assert app.default_name in capsys.readouterr().out
