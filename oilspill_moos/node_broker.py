@@ -27,7 +27,7 @@ NODE_AUTO_BRIDGES = {
     "auto_bridge_pshare_vars": ("NODE_PSHARE_VARS",),
 }
 
-Post = tuple[str, str]
+Post = tuple[str, str | float]
 
 
 def strip_blanks(text: str) -> str:

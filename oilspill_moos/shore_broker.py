@@ -189,7 +189,7 @@ class ShoreBrokerState(BrokerState):
         count = len(self.nodes)
         if count != self.last_count or self.last_count_post is None or now - self.last_count_post >= NODE_COUNT_PERIOD:
             self.last_count, self.last_count_post = count, now
-            posts.append(("UFSB_NODE_COUNT", str(count)))
+            posts.append(("UFSB_NODE_COUNT", float(count)))
         return posts
 
     def _acks(self, now: float) -> list[Post]:

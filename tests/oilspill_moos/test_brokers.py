@@ -154,7 +154,7 @@ def test_shore_acks_and_bridges_a_new_node():
     ]
     posts = shore.iterate(1.5)
     assert ("NODE_BROKER_ACK_ABE", SHORE_INFO + ",status=ok,key=0,id=1") in posts
-    assert ("NODE_BROKER_VACK", "abe") in posts and ("UFSB_NODE_COUNT", "1") in posts
+    assert ("NODE_BROKER_VACK", "abe") in posts and ("UFSB_NODE_COUNT", 1.0) in posts
     assert ("UFSB_QBRIDGE_VARS", "DEPLOY") in posts
     assert ("NODE_BROKER_ACK_ABE", SHORE_INFO + ",status=ok,key=0,id=2") in shore.iterate(2.0)
     assert not any(k.startswith("NODE_BROKER_ACK") for k, _ in shore.iterate(11.5))  # no ping for 10 s
