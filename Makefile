@@ -15,6 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e '.[test]'
 	touch $(STAMP)
 
+# The venv's console scripts (moosdb, pAntler, ...) must be on PATH for tests that launch them.
+export PATH := $(abspath $(VENV))/bin:$(PATH)
+
 test: $(STAMP)
 	$(PY) -m pytest
 
