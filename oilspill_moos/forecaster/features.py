@@ -259,13 +259,16 @@ _ANGLE_PAIRS = ((FEATURE_INDEX["hour_sin"], FEATURE_INDEX["hour_cos"], 24.0),
 _TREND = [FEATURE_INDEX[n] for n in GEOMETRY_FEATURES + POSITION_FEATURES if n != "area_km2"]
 
 
-def shift_time(row: np.ndarray, dt_h: float | np.ndarray) -> np.ndarray:
-    """Rows of features with the time features moved ``dt_h`` hours exactly (clock angles rotated)."""
+def shift_time(rows: np.ndarray, dt_h: float | np.ndarray) -> np.ndarray:
+    """Feature rows with the time features moved ``dt_h`` hours exactly (clock angles rotated).
+
+    ``rows`` is one row (broadcast over every ``dt_h``) or one row per ``dt_h``.
+    """
     dt = np.atleast_1d(np.asarray(dt_h, dtype=float))
-    out = np.repeat(np.asarray(row, dtype=float)[None, :], len(dt), axis=0)
+    out = np.array(np.broadcast_to(np.asarray(rows, dtype=float), (len(dt), len(FEATURE_NAMES))))
     out[:, FEATURE_INDEX["hours_since_release"]] += dt
     for s, c, period in _ANGLE_PAIRS:
-        angle = np.arctan2(row[s], row[c]) + 2 * np.pi * dt / period
+        angle = np.arctan2(out[:, s], out[:, c]) + 2 * np.pi * dt / period
         out[:, s], out[:, c] = np.sin(angle), np.cos(angle)
     return out
 
@@ -300,10 +303,9 @@ def interpolate(times_h: np.ndarray, features: np.ndarray, new_times_h: np.ndarr
         raise ValueError("interpolation times fall outside the observed span")
     out = np.column_stack([np.interp(new, times_h, features[:, c]) for c in range(features.shape[1])])
     before = np.clip(np.searchsorted(times_h, new, side="right") - 1, 0, len(times_h) - 1)
-    for k, (b, t) in enumerate(zip(before, new)):
-        timed = shift_time(features[b], t - times_h[b])[0]
-        for name in TIME_FEATURES:
-            out[k, FEATURE_INDEX[name]] = timed[FEATURE_INDEX[name]]
+    timed = shift_time(features[before], new - times_h[before])
+    columns = [FEATURE_INDEX[name] for name in TIME_FEATURES]
+    out[:, columns] = timed[:, columns]
     return _make_consistent(out)
 
 
@@ -409,6 +411,7 @@ def make_windows(sequences, *, window: int = WINDOW, horizons_h=HORIZONS_H, scal
         check_finite(feats, where=f"sequence {s}")
         elapsed_hours(times_h)
         t, x = (times_h, feats) if step is None else resample(times_h, feats, step)
+        seq_ends = []
         for e in range(len(t) - 1, -1, -stride):
             end = t[e]
             if end + max(horizons_h) > times_h[-1] + 1e-9 or (max_end is not None and end > max_end + 1e-9):
@@ -420,10 +423,13 @@ def make_windows(sequences, *, window: int = WINDOW, horizons_h=HORIZONS_H, scal
             wt, wx = pad_by_trend(t[start:e + 1], x[start:e + 1], window)
             inputs.append(wx)
             elapsed.append(elapsed_hours(wt))
-            targets.append(interpolate(times_h, feats, end + np.asarray(horizons_h, float))[:, target_cols])
-            seq_ids.append(s)
-            ends.append(end)
+            seq_ends.append(end)
             padded.append(window - real)
+        if seq_ends:
+            when = (np.asarray(seq_ends)[:, None] + np.asarray(horizons_h, float)).ravel()
+            targets.extend(interpolate(times_h, feats, when)[:, target_cols].reshape(len(seq_ends), -1, len(target_cols)))
+            seq_ids += [s] * len(seq_ends)
+            ends += seq_ends
     n_t, n_h = len(target_cols), len(horizons_h)
     order = np.lexsort((np.asarray(ends), np.asarray(seq_ids))) if seq_ids else np.array([], int)
     return Windows(
