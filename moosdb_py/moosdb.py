@@ -110,6 +110,7 @@ class ClientConnection(asyncio.Protocol):
         self.opened = self.last_rx = _time.monotonic()
         self.packets_in = 0
         self.latency = None   # (recent, max, min, sum, count) in ms from timing messages
+        self.drop_reason = ""
 
     def __repr__(self) -> str:
         return f"client {self.name or '?'!r} ({self.peer})"
@@ -138,10 +139,9 @@ class ClientConnection(asyncio.Protocol):
         self.db.schedule_flush()
 
     def connection_lost(self, exc):
-        was = self.state
         self.state = "closed"
-        if was == "ready":
-            self.db.remove_client(self, f"connection lost ({exc})" if exc else "closed by client")
+        reason = self.drop_reason or (f"connection lost ({exc})" if exc else "closed by client")
+        self.db.remove_client(self, reason)
 
     # -- handshake (spec §4) ------------------------------------------------------------------
     def _check_protocol(self, slot: bytes) -> None:
@@ -164,6 +164,8 @@ class ClientConnection(asyncio.Protocol):
 
     # -- output -------------------------------------------------------------------------------
     def queue(self, wire: bytes) -> None:
+        if self.state == "closed":
+            return
         self.held.append(wire)
         self.held_bytes += len(wire)
         if self.asynchronous:
@@ -189,23 +191,20 @@ class ClientConnection(asyncio.Protocol):
         self.transport.write(codec.encode_packet([msg]))
         self.close()
 
-    def close(self) -> None:
+    def close(self, reason: str = "closed by the DB") -> None:
+        """Close after sending what is queued; the DB forgets the client in connection_lost."""
         if self.state != "closed":
-            was, self.state = self.state, "closed"
+            self.state, self.drop_reason = "closed", reason
             self.transport.close()
-            if was == "ready":
-                self.db.remove_client(self, "closed by the DB")
 
     def drop(self, reason: str) -> None:
         """Cut a misbehaving client off at once; nobody else is affected."""
         if self.state == "closed":
             return
         log.warning("dropping %s: %s", self, reason)
-        was, self.state = self.state, "closed"
+        self.state, self.drop_reason = "closed", reason
         self.held, self.held_bytes = [], 0
         self.transport.abort()
-        if was == "ready":
-            self.db.remove_client(self, reason)
 
 
 class MOOSDB:

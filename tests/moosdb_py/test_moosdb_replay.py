@@ -63,6 +63,7 @@ async def replay(cap: dict, db: MOOSDB, pace: float | None = None, until: float 
     each captured reply must also have arrived (rule-based scenarios expect different replies).
     """
     clients: dict[int, ReplayClient] = {}
+    sides: dict[int, object] = {}       # the DB's ClientConnection of each
     expected: dict[int, int] = {}
     start = time.monotonic()
     for unit in _timeline(cap):
@@ -73,9 +74,8 @@ async def replay(cap: dict, db: MOOSDB, pace: float | None = None, until: float 
         conn = unit["conn"]
         if conn not in clients:
             clients[conn] = ReplayClient(*await asyncio.open_connection(db.host, db.port))
-            await async_wait_until(lambda: _db_side(db, clients[conn]), 2)
-        client = clients[conn]
-        side = _db_side(db, client)
+            sides[conn] = await async_wait_until(lambda: _db_side(db, clients[conn]), 2)
+        client, side = clients[conn], sides[conn]
         if unit["kind"] == "close":
             client.writer.close()
             await async_wait_until(lambda: side.state == "closed", 2)
