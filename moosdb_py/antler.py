@@ -191,7 +191,8 @@ class Antler:
         self.hosted: list = []
         self.stopping = asyncio.Event()
         self.failures: list[str] = []   # MOOS names that could not start or died on their own
-        self._tasks: list[asyncio.Task] = []
+        self._tasks: list[asyncio.Task] = []          # output watchers
+        self._hosted_tasks: list[asyncio.Task] = []   # --one-process apps
 
     def say(self, text: str) -> None:
         print(f"pAntler: {text}", file=self.out, flush=True)
@@ -249,7 +250,7 @@ class Antler:
         self.hosted.append(app)
         task = asyncio.create_task(app.run_async())
         task.add_done_callback(lambda t, name=spec.name: self._hosted_done(name, t))
-        self._tasks.append(task)
+        self._hosted_tasks.append(task)
         self.say(f"hosting {spec.name} in-process")
         return True
 
@@ -286,16 +287,30 @@ class Antler:
     async def _supervise(self) -> None:
         """Until a stop request, or until no child is left and nothing is hosted."""
         while not self.stopping.is_set():
-            if not self.hosted and all(c.process.returncode is not None for c in self.children):
+            if all(t.done() for t in self._hosted_tasks) and all(c.process.returncode is not None
+                                                                 for c in self.children):
                 self.say("every process has exited")
                 return
             await self._pause(0.2)
 
     async def stop(self) -> None:
+        """Apps first (hosted and child processes), the MOOSDB last, so the apps' final posts still land."""
         self.stopping.set()
         for app in reversed(self.hosted):
             app.stop()
-        live = [c for c in reversed(self.children) if c.process.returncode is None]
+        await self._terminate([c for c in reversed(self.children) if not c.spec.is_db])
+        if self._hosted_tasks:
+            await asyncio.wait(self._hosted_tasks, timeout=STOP_GRACE)
+        await self._terminate([c for c in self.children if c.spec.is_db])
+        for child in self.children:   # grandchildren left in a group whose leader already exited
+            _signal_group(child.process.pid, signal.SIGKILL)
+        if self._tasks:
+            await asyncio.wait(self._tasks, timeout=STOP_GRACE)
+        for task in self._tasks:
+            task.cancel()
+
+    async def _terminate(self, children: list[Child]) -> None:
+        live = [c for c in children if c.process.returncode is None]
         for child in live:
             _signal_group(child.process.pid, signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE
@@ -306,12 +321,6 @@ class Antler:
                 self.say(f"{child.spec.name} ignored SIGTERM; killing it")
                 _signal_group(child.process.pid, signal.SIGKILL)
                 await child.process.wait()
-        for child in self.children:   # grandchildren left in a group whose leader already exited
-            _signal_group(child.process.pid, signal.SIGKILL)
-        if self._tasks:
-            await asyncio.wait(self._tasks, timeout=STOP_GRACE)
-        for task in self._tasks:
-            task.cancel()
 
 
 def _signal_group(pid: int, sig: int) -> None:

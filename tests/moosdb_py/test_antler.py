@@ -1,4 +1,5 @@
 """pAntler: launch plans, nsplug'd missions, and real runs that must leave no process behind."""
+import asyncio
 import os
 import re
 import signal
@@ -9,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from helpers import wait_until
+from helpers import async_wait_until, wait_until
+from moosdb_py.alog import read_alog
 from moosdb_py.antler import DB_TARGET, expanded_mission, plan
+from moosdb_py.client import MOOSClient
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 
@@ -141,3 +144,61 @@ def test_signal_stops_every_child_and_dead_children_are_reported(tmp_path, free_
     output.thread.join(5)
     assert proc.returncode == 1   # ls failed on its own
     assert not [pid for pid in pids if alive(pid)]
+
+
+HELLO = Path(__file__).resolve().parents[2] / "missions" / "hello"
+
+
+async def tool(name, *args):
+    proc = await asyncio.create_subprocess_exec(sys.executable, "-m", f"moosdb_py.{name}", *map(str, args),
+                                                stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    out, err = await asyncio.wait_for(proc.communicate(), 20)
+    assert proc.returncode == 0, err.decode()
+    return out.decode()
+
+
+@pytest.mark.parametrize("one_process", [False, True], ids=["processes", "one-process"])
+def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
+    """pAntler runs missions/hello; uPokeDB deploys, uXMS shows it; the alog has it all; nothing is left."""
+    port = free_port()
+    proc = pantler(HELLO / "hello.moos", "--nsplug", f"PORT={port}", "--nsplug", f"LOGDIR={tmp_path}",
+                   "--nsplug", f"BHV_DIR={HELLO}", "--MOOSTimeWarp=4", *(["--one-process"] if one_process else []),
+                   cwd=tmp_path)
+    output = Output(proc)
+
+    async def scenario():
+        latest = {}
+        watcher = MOOSClient("watcher", "127.0.0.1", port, time_warp=4,
+                             on_mail=lambda mail: latest.update((m.key, m.value) for m in mail),
+                             on_connect=lambda: [watcher.register(k) for k in
+                                                 ("LOGGER_DIRECTORY", "IVPHELM_STATE", "DESIRED_SPEED")])
+        comms = asyncio.create_task(watcher.run())
+        try:
+            # the logger and the helm are up and registered once their first posts are seen
+            await async_wait_until(lambda: "LOGGER_DIRECTORY" in latest and "IVPHELM_STATE" in latest, timeout=30)
+            await tool("poke", "--port", port, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false",
+                       "NAV_X=0", "NAV_Y=0", "NAV_HEADING=0", "NAV_SPEED=0", "NAV_DEPTH=0")
+            await async_wait_until(lambda: latest.get("DESIRED_SPEED") == 1.5, timeout=20)
+            return await tool("xms", "--port", port, "DEPLOY", "DESIRED_SPEED", "IVPHELM_STATE", "--once")
+        finally:
+            watcher.close()
+            await asyncio.wait([comms], timeout=5)
+
+    try:
+        shown = asyncio.run(scenario())
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    output.thread.join(5)
+    rows = {line.split()[0]: line.split()[-1] for line in shown.splitlines()[2:]}
+    assert rows == {"DEPLOY": '"true"', "DESIRED_SPEED": "1.5", "IVPHELM_STATE": '"DRIVE"'}
+    pids = [int(p) for p in re.findall(r"launched \S+ \(pid (\d+)\)", output.text)]
+    assert len(pids) == (1 if one_process else 3) and proc.returncode == 0, output.text
+    assert not [pid for pid in pids if alive(pid)]
+    (folder,) = tmp_path.glob("LOG_HELLO_*")
+    log = read_alog(folder / f"{folder.name}.alog")
+    assert log.last("DEPLOY").value == "true" and log.last("DEPLOY").source == "uPokeDB"
+    assert 1.5 in log.values("DESIRED_SPEED") and "DRIVE" in log.values("IVPHELM_STATE")
+    assert f"ServerPort   = {port}" in (folder / f"{folder.name}._moos").read_text()

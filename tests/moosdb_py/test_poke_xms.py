@@ -1,4 +1,5 @@
 """uPokeDB and uXMS: poke parsing, the scope table, and both tools against a real moosdb."""
+import asyncio
 import os
 import subprocess
 import sys
@@ -6,7 +7,7 @@ import sys
 import pytest
 
 from moosdb_py.message import MOOSMsg
-from moosdb_py.poke import Poke, parse_poke
+from moosdb_py.poke import Poke, parse_poke, poke_db
 from moosdb_py.poke import main as poke_main
 from moosdb_py.xms import Scope, format_table, history_line, value_text
 from moosdb_py.xms import main as xms_main
@@ -88,12 +89,12 @@ def test_poke_then_scope_by_mission_and_by_port(moosdb_server, tmp_path):
 
 def test_history_mode_prints_every_post(moosdb_server):
     scope = subprocess.Popen([sys.executable, "-m", "moosdb_py.xms", "--port", str(moosdb_server.port),
-                              "--history=COUNT", "--duration=3"], stdout=subprocess.PIPE, text=True,
+                              "--history=COUNT", "--duration=60"], stdout=subprocess.PIPE, text=True,
                              env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         assert scope.stdout.readline().split() == ["Time", "VarName", "Source", "VarValue"]  # registered now
         for n in (1, 2):
-            assert tool("poke", "--port", moosdb_server.port, f"COUNT={n}").returncode == 0
+            asyncio.run(poke_db(moosdb_server.host, moosdb_server.port, [Poke("COUNT", float(n))]))
         lines = [scope.stdout.readline(), scope.stdout.readline()]
     finally:
         scope.terminate()
