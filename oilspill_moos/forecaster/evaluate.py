@@ -494,7 +494,7 @@ def representative_scenarios(ev: Evaluation, count: int = 3) -> list[int]:
 # ---------------------------------------------------------------------------------------------------
 # The real Deepwater Horizon composites
 
-def real_dwh_check(forecaster, paths) -> list[str]:
+def real_dwh_check(forecasters, paths) -> list[str]:
     """What the three real NOAA/NESDIS composites allow: persistence, trend and the model vs 20 May."""
     from datetime import timedelta
 
@@ -514,6 +514,7 @@ def real_dwh_check(forecaster, paths) -> list[str]:
     if len(observations) < 3:
         return lines + ["Fewer than three dates: nothing to forecast."]
     truth = F.select_geometry(F.to_plane(geoms[-1]))
+    forecaster = forecasters[0]
     env = forecaster.mean_environment()
     feats = F.feature_matrix(geoms[:-1], times[:-1], [env] * (len(geoms) - 1), release_time=times[0])
     times_h = np.array([(t - times[0]).total_seconds() / 3600 for t in times])
@@ -526,16 +527,23 @@ def real_dwh_check(forecaster, paths) -> list[str]:
     rows = [("persistence (19 May as is)", F.select_geometry(F.to_plane(geoms[-2]))),
             (f"constant-velocity ({lead:.0f} h trend from 17 -> 19 May)",
              F.select_geometry(F.to_plane(rebuild_boundary(geoms[-2], trend, names=forecaster.target_names))))]
-    for f in forecaster.forecast(geoms[:-1], times[:-1]):
-        rows.append((f"{forecaster.kind} +{f.horizon_h:g} h (valid {times[-2] + timedelta(hours=f.horizon_h):%d %b %H:%M}, "
-                     f"scored against 20 May)", F.select_geometry(F.to_plane(f.geometry))))
+    diverged = []
+    for model in forecasters:
+        try:
+            forecasts = model.forecast(geoms[:-1], times[:-1])
+        except ValueError as exc:
+            diverged.append(f"- {model.kind}: no forecast — {exc}.")
+            continue
+        for f in forecasts:
+            rows.append((f"{model.kind} +{f.horizon_h:g} h (valid {times[-2] + timedelta(hours=f.horizon_h):%d %b %H:%M})",
+                         F.select_geometry(F.to_plane(f.geometry))))
     lines += ["| Forecast of the 20 May largest part | IoU | Area error (km²) | Centroid error (km) | Hausdorff (km) |",
               "|---|---|---|---|---|"]
     for name, polygon in rows:
         m = polygon_metrics(polygon, truth)
         lines.append(f"| {name} | {m['iou']:.3f} | {m['area_abs_err_km2']:,.0f} | {m['centroid_err_km']:.1f} | "
                      f"{m['hausdorff_km']:.1f} |")
-    return lines
+    return lines + [""] + diverged
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -646,7 +654,8 @@ def main(argv=None, args=None) -> int:
     if dwh is None:
         default = Path.cwd() / ".." / "shared" / "data" / "dwh"
         dwh = sorted(default.glob("*.geojson")) if default.is_dir() else []
-    real_lines = (real_dwh_check(Forecaster(args.weights, "ltc-rk4"), dwh) if dwh
+    kinds = [k for k in ORDER if (Path(args.weights) / f"{k}.pt").exists()]
+    real_lines = (real_dwh_check([Forecaster(args.weights, k) for k in kinds], dwh) if dwh
                   else ["No real DWH files given (`--dwh FILES`)."])
     command = "python -m oilspill_moos.forecaster evaluate" + (" " + " ".join(argv) if argv else "")
     write_report(ev, args.report, args.img, training, real_lines, command)

@@ -29,7 +29,8 @@ from .models import KINDS
 from .push import DEFAULT_HOST, DEFAULT_PORT, BoundaryPusher, PushRejected, PushUnreachable, boundary_line
 from .train import WEIGHTS_DIR, DeltaScaler, load_checkpoint
 
-DEFAULT_MODEL = "ltc-rk4"
+# Fused: unconditionally stable, so irregular (hours to days) gaps between observations cannot blow it up.
+DEFAULT_MODEL = "ltc-fused"
 POLYGON_SUFFIXES = (".geojson", ".json", ".shp")
 
 
@@ -85,6 +86,10 @@ class Forecaster:
         x = torch.as_tensor(self.feature_scaler.transform(window)[None], dtype=torch.float32)
         dt = torch.as_tensor(elapsed[None], dtype=torch.float32)
         mean, sigma = (t.numpy() for t in self.model(x, dt))
+        if not (np.isfinite(mean).all() and np.isfinite(sigma).all()):
+            raise ValueError(f"{self.kind} diverged on this window (steps of up to {elapsed.max():g} h between "
+                             "observations, integrated in a fixed number of sub-steps); the fused solver stays "
+                             "bounded for any step: use --model ltc-fused")
         last = window[-1:, self.target_cols]
         targets = make_targets_consistent(self.delta_scaler.inverse_transform(last, mean), self.target_cols)[0]
         spread_km = sigma[0] * self.delta_scaler.std                                  # [H, K] in target units
