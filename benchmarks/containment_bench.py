@@ -1,0 +1,109 @@
+"""Containment figures: planner run time, and boundary push -> every vehicle on its loop.
+
+    python benchmarks/containment_bench.py [--sizes 3,10,30] [--warp W] [--planner-only]
+
+For each fleet size the whole stack runs (missions/oilspill, one pAntler per
+community in --one-process mode) with the vehicles on a start line south of a
+shipped spill outline. The time from the boundary push to pPathAssign's OIL-PATH
+(every vehicle arrived) is set against the lower bound: the longest straight-line
+distance from a vehicle to its assigned point divided by the transit speed, plus
+nothing for station-keeping and coordination. Times are mission (MOOS) seconds.
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from oilspill_moos.demo import OilspillMission, Observer, VEHICLE_SPACING, shipped_boundaries, wait_for
+from oilspill_moos.forecaster.push import BoundaryPusher
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
+from oilspill_moos.planner import containment_region, plan_containment
+
+TRANSIT_SPEED = 2.5  # the mission's default TRANSIT_SPEED, m/s
+STANDOFF = 30.0
+ORIGIN = (28.736667, -88.387222)
+
+
+def start_line(n: int) -> dict[str, tuple[float, float]]:
+    from oilspill_moos.demo import vehicle_names
+
+    return {name: ((i - (n - 1) / 2) * VEHICLE_SPACING, 0.0) for i, name in enumerate(vehicle_names(n))}
+
+
+def planner_figures(sizes: list[int]) -> None:
+    outline = parse_boundary_line(shipped_boundaries()[0].decode(), LocalGrid(*ORIGIN)).polygon
+    region = containment_region(outline, STANDOFF)
+    print(f"planner: stand-off loop {region.exterior.length:.0f} m, {len(region.exterior.coords) - 1} vertices")
+    for n in sizes:
+        positions = start_line(n)
+        runs = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            plan = plan_containment(region, positions)
+            runs.append(time.perf_counter() - t0)
+        print(f"  N={n:3d}: plan_containment {1000 * statistics.median(runs):7.1f} ms (median of 5), "
+              f"longest transit {plan.bottleneck:6.1f} m")
+
+
+async def stack_figure(n: int, warp: float, timeout: float) -> None:
+    line = shipped_boundaries()[0]
+    with tempfile.TemporaryDirectory(prefix=f"containment_{n}_") as folder:
+        mission = OilspillMission(Path(folder), vehicles=n, warp=warp, standoff=STANDOFF)
+        launched = time.monotonic()
+        with mission:
+            observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
+            task = asyncio.create_task(observer.client.run())
+            try:
+                await observer.client.wait_connected(timeout)
+                await wait_for(lambda: observer.vehicles_seen() >= set(mission.fleet), timeout, "fleet online", mission)
+                online = time.monotonic() - launched
+                await observer.deploy(mission.fleet, timeout, mission)
+                pusher = BoundaryPusher("127.0.0.1", mission.boundary_port, connect_timeout=timeout)
+                await pusher.push(line)
+                pushed = observer.moos_now
+                await wait_for(lambda: observer.phase_count.get(STARTING_POSITION, 0) > 0, timeout, "plan", mission)
+                planned = observer.moos_now
+                await wait_for(lambda: observer.phase_count.get(OIL_PATH, 0) > 0, timeout, "all on loop", mission)
+                on_loop = observer.moos_now
+                await pusher.close()
+            finally:
+                observer.client.close()
+                task.cancel()
+        starts = {name: loop[0] for name, loop in observer.loops.items()}
+        positions = start_line(n)
+        longest = max(np.hypot(starts[v][0] - positions[v][0], starts[v][1] - positions[v][1]) for v in starts)
+        bound = longest / TRANSIT_SPEED
+        print(f"  N={n:3d}: push -> all on loop {on_loop - pushed:7.1f} s (coordinates {planned - pushed:5.1f} s), "
+              f"lower bound {bound:6.1f} s, ratio {(on_loop - pushed) / bound:4.2f}; "
+              f"fleet online after {online:5.1f} s wall")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", default="3,10,30", help="fleet sizes (default 3,10,30)")
+    parser.add_argument("--warp", type=float, default=5.0, help="MOOSTimeWarp for the stack runs (default 5)")
+    parser.add_argument("--timeout", type=float, default=600.0, help="wall seconds allowed per step")
+    parser.add_argument("--planner-only", action="store_true", help="skip the full-stack runs")
+    args = parser.parse_args(argv)
+    sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
+    planner_figures(sizes)
+    if not args.planner_only:
+        print(f"full stack (time warp {args.warp:g}, transit speed {TRANSIT_SPEED} m/s, stand-off {STANDOFF:g} m):")
+        for n in sizes:
+            try:
+                asyncio.run(stack_figure(n, args.warp, args.timeout))
+            except (TimeoutError, RuntimeError) as exc:
+                print(f"  N={n:3d}: failed: {exc}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,446 @@
+"""`make demo`: the oil-spill mission end to end, headless, with time warp.
+
+Launches missions/oilspill (a shoreside and N vehicle communities, one pAntler
+each), pushes a predicted boundary to pPathAssign over TCP (from the forecaster
+when its trained weights are present, else the outline shipped with the
+mission), follows the fleet through STATION-KEEPING -> STARTING-POSITION ->
+OIL-PATH, pushes a second boundary that re-plans, and leaves a report in
+demo-output/: tracks.png (tracks, boundaries and loops) and timeline.json.
+
+    python -m oilspill_moos.demo [--vehicles N] [--warp W] [--out DIR] [--loop-time S]
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from moosdb_py.nsplug import preprocess
+from moosdb_py.source import MissionFileError
+from oilspill_moos.forecaster.push import BoundaryPusher
+from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec, parse_report
+
+REPO = Path(__file__).resolve().parents[1]
+MISSION_DIR = REPO / "missions" / "oilspill"
+SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
+NAMES = ("abe", "ben", "cal", "deb", "eve", "fin", "gil", "hal", "ike", "jan", "kim", "lou")
+VEHICLE_SPACING = 30.0  # metres between vehicles on the start line south of the spill
+ORIGIN = (28.736667, -88.387222)  # LatOrigin/LongOrigin of missions/oilspill/plugs.moos
+STANDOFF = 30.0
+
+
+def vehicle_names(count: int) -> list[str]:
+    if count < 1:
+        raise ValueError(f"need at least one vehicle, got {count}")
+    return list(NAMES[:count]) if count <= len(NAMES) else [f"v{i:02d}" for i in range(1, count + 1)]
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A loopback port free right now for TCP (MOOSDB, boundary server) or UDP (pShare)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@dataclass
+class Community:
+    name: str
+    moos_port: int
+    defines: dict[str, str]
+    process: subprocess.Popen | None = None
+
+    @property
+    def moos_file(self) -> str:
+        return f"targ_{self.name}.moos"
+
+
+@dataclass
+class OilspillMission:
+    """missions/oilspill expanded into `folder` on free loopback ports, one pAntler per community."""
+
+    folder: Path
+    vehicles: int = 3
+    warp: float = 10.0
+    one_process: bool = True
+    standoff: float = STANDOFF
+    node_timeout: float = 30.0
+    start_line: tuple[float, float] = (0.0, 0.0)   # middle of the vehicles' start line
+    operating_radius: float = 20000.0
+    extra: dict[str, str] = field(default_factory=dict)  # more nsplug macros for every community
+
+    def __post_init__(self):
+        self.folder = Path(self.folder).resolve()
+        self.boundary_port = free_port()
+        shore_pshare = free_port(socket.SOCK_DGRAM)
+        names = vehicle_names(self.vehicles)
+        common = {"WARP": f"{self.warp:g}", "LOG_PATH": str(self.folder / "logs") + "/", **self.extra}
+        self.shoreside = Community("shoreside", free_port(), {
+            **common, "PSHARE_PORT": str(shore_pshare), "BOUNDARY_PORT": str(self.boundary_port),
+            "FLEET": ":".join(names), "STANDOFF": f"{self.standoff:g}", "NODE_TIMEOUT": f"{self.node_timeout:g}",
+            "OPERATING_RADIUS": f"{self.operating_radius:g}"})
+        self.shoreside.defines["MOOS_PORT"] = str(self.shoreside.moos_port)
+        self.fleet: dict[str, Community] = {}
+        for i, name in enumerate(names):
+            x = self.start_line[0] + (i - (len(names) - 1) / 2) * VEHICLE_SPACING
+            port = free_port()
+            self.fleet[name] = Community(name, port, {
+                **common, "VNAME": name, "MOOS_PORT": str(port), "PSHARE_PORT": str(free_port(socket.SOCK_DGRAM)),
+                "SHORE_IP": "localhost", "SHORE_PSHARE": str(shore_pshare), "START_POS": f"{x:.1f},{self.start_line[1]:.1f}"})
+
+    @property
+    def communities(self) -> list[Community]:
+        return [self.shoreside, *self.fleet.values()]
+
+    def generate(self) -> list[Path]:
+        """Write targ_*.moos / targ_*.bhv; raises MissionFileError naming the template line."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        (self.folder / "logs").mkdir(exist_ok=True)
+        files = []
+        for community in self.communities:
+            template = "meta_shoreside.moos" if community is self.shoreside else "meta_vehicle.moos"
+            _expand(MISSION_DIR / template, community.defines, self.folder / community.moos_file)
+            if community is not self.shoreside:
+                _expand(MISSION_DIR / "meta_vehicle.bhv", community.defines, self.folder / f"targ_{community.name}.bhv")
+            files.append(self.folder / community.moos_file)
+        return files
+
+    def start(self) -> None:
+        self.generate()
+        for community in self.communities:
+            self._launch(community)
+
+    def _launch(self, community: Community) -> None:
+        args = ["pAntler", community.moos_file, "--quiet"] + (["--one-process"] if self.one_process else [])
+        log = open(self.folder / "logs" / f"antler_{community.name}.txt", "ab")
+        community.process = subprocess.Popen([str(Path(sys.executable).parent / args[0]), *args[1:]],
+                                             cwd=self.folder, stdout=log, stderr=subprocess.STDOUT,
+                                             start_new_session=True)
+        log.close()
+
+    def stop_community(self, name: str, timeout: float = 10.0) -> None:
+        """Stop one community (pAntler stops its apps): a vehicle dropping out, or the end of the run."""
+        community = self.shoreside if name == "shoreside" else self.fleet[name]
+        process = community.process
+        if process is None or process.poll() is not None:
+            return
+        os.killpg(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+    def restart_community(self, name: str) -> None:
+        self._launch(self.shoreside if name == "shoreside" else self.fleet[name])
+
+    def stop(self) -> None:
+        for community in reversed(self.communities):
+            self.stop_community(community.name)
+
+    def dead(self) -> list[str]:
+        """Communities whose pAntler ended by itself (a crash the caller should report)."""
+        return [c.name for c in self.communities if c.process is not None and c.process.poll() is not None]
+
+    def alog(self, name: str) -> Path:
+        return self.folder / "logs" / f"LOG_{name.upper()}" / f"LOG_{name.upper()}.alog"
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def _expand(template: Path, defines: dict[str, str], target: Path) -> None:
+    target.write_text("".join(line.text + "\n" for line in preprocess(template, defines)))
+
+
+# ---- watching the shoreside --------------------------------------------------------------
+
+@dataclass
+class Observer:
+    """A MOOS client on the shoreside DB that keeps what the timeline and the report need."""
+
+    host: str
+    port: int
+    warp: float
+    events: list[dict] = field(default_factory=list)
+    tracks: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
+    boundaries: list[list[tuple[float, float]]] = field(default_factory=list)
+    regions: list[list[tuple[float, float]]] = field(default_factory=list)
+    loops: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    phase: str = ""
+    phase_count: dict[str, int] = field(default_factory=dict)
+    dropped: list[str] = field(default_factory=list)
+    modes: dict[str, str] = field(default_factory=dict)
+    status: str = ""
+    moos_now: float = 0.0
+    started: float = field(default_factory=time.monotonic)
+
+    def __post_init__(self):
+        from moosdb_py.client import MOOSClient
+        self.client = MOOSClient("uDemoObserver", self.host, self.port, on_mail=self.on_mail,
+                                 on_connect=self.on_connect, time_warp=self.warp)
+        self.t0: float | None = None
+
+    def on_connect(self) -> None:
+        for key in ("OILSPILL_PHASE", "OILSPILL_STATUS", "OILSPILL_BOUNDARY", "VIEW_POLYGON", "NODE_REPORT",
+                    "OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
+            self.client.register(key)
+        self.client.register_wildcard("OIL_PATH_UPDATES_*")
+
+    def on_mail(self, mail) -> None:
+        for msg in mail:
+            self.moos_now = max(self.moos_now, msg.time)
+            if self.t0 is None:
+                self.t0 = msg.time
+            value = str(msg.value)
+            if msg.key == "NODE_REPORT":
+                report = parse_report(value)
+                name = report.get("name", msg.community).lower()
+                self.modes[name] = report.get("mode", "")
+                try:
+                    self.tracks.setdefault(name, []).append((msg.time, float(report["x"]), float(report["y"])))
+                except (KeyError, ValueError):
+                    continue
+            elif msg.key == "OILSPILL_PHASE":
+                self.phase = value
+                self.phase_count[value] = self.phase_count.get(value, 0) + 1
+                self.note("phase", value, msg.time)
+            elif msg.key == "OILSPILL_STATUS":
+                self.status = value
+            elif msg.key == "OILSPILL_BOUNDARY":
+                self.boundaries.append(parse_polygon_spec(value))
+            elif msg.key == "VIEW_POLYGON" and "label=standoff" in value:
+                self.regions.append(parse_polygon_spec(value))
+            elif msg.key.startswith("OIL_PATH_UPDATES_"):
+                points = value.split("#")[0].partition("=")[2]
+                self.loops[msg.key[len("OIL_PATH_UPDATES_"):].lower()] = parse_polygon_spec(f"pts={{{points}}}")
+            elif msg.key in ("OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
+                if msg.key == "OILSPILL_DROPPED":
+                    self.dropped.append(value)
+                self.note(msg.key.split("_")[1].lower(), value, msg.time)
+
+    def note(self, kind: str, what: str, moos_time: float | None = None) -> dict:
+        stamp = self.moos_now if moos_time is None else moos_time
+        event = {"event": kind, "what": what, "moos_s": round(stamp - (self.t0 or stamp), 2),
+                 "wall_s": round(time.monotonic() - self.started, 2)}
+        self.events.append(event)
+        print(f"[{event['wall_s']:7.1f} s wall | {event['moos_s']:8.1f} s mission] {kind:<8} {what}", flush=True)
+        return event
+
+    def vehicles_seen(self) -> set[str]:
+        return set(self.tracks)
+
+    def deployed(self) -> set[str]:
+        return {name for name, mode in self.modes.items() if "ACTIVE" in mode and "INACTIVE" not in mode}
+
+    async def deploy(self, fleet, timeout: float, mission: "OilspillMission | None" = None) -> None:
+        """What pMarineViewer's DEPLOY button does, repeated until every vehicle reports an active mode
+        (the shore broker sets up its bridges to a new vehicle only every few seconds)."""
+        deadline = time.monotonic() + timeout
+        while not self.deployed() >= set(fleet):
+            self.client.notify("DEPLOY_ALL", "true")
+            self.client.notify("MOOS_MANUAL_OVERRIDE_ALL", "false")
+            await wait_for(lambda: self.deployed() >= set(fleet), min(1.0, max(deadline - time.monotonic(), 0.01)),
+                           "every vehicle deployed", mission, quiet=time.monotonic() < deadline)
+
+
+async def wait_for(predicate, timeout: float, what: str, mission: OilspillMission | None = None,
+                   quiet: bool = False) -> None:
+    """Poll until `predicate()` holds; fail naming `what` (and any community that died), or with
+    `quiet` just return at the deadline."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if mission is not None and mission.dead():
+            raise RuntimeError(f"while waiting for {what}: {', '.join(mission.dead())} stopped (see logs/antler_*.txt)")
+        if time.monotonic() > deadline:
+            if quiet:
+                return
+            raise TimeoutError(f"{what}: not within {timeout:.0f} s")
+        await asyncio.sleep(0.05)
+
+
+def shipped_boundaries() -> list[bytes]:
+    return [line.encode() + b"\n" for line in SHIPPED_BOUNDARIES.read_text().splitlines() if line.strip()]
+
+
+async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, timeout: float,
+                   cycles: list[list[bytes]], origin: str, start: tuple[float, float]) -> dict:
+    mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, start_line=start,
+                              operating_radius=0.0 if origin.startswith("forecaster") else 20000.0)
+    report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": origin, "cycles": []}
+    with mission:
+        observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
+        client_task = asyncio.create_task(observer.client.run())
+        try:
+            await observer.client.wait_connected(timeout)
+            observer.note("start", f"{vehicles} vehicles, time warp {warp:g}, boundary from {origin}")
+            await wait_for(lambda: observer.vehicles_seen() >= set(mission.fleet), timeout,
+                           "every vehicle's NODE_REPORT on the shoreside", mission)
+            observer.note("online", ":".join(sorted(mission.fleet)))
+            await observer.deploy(mission.fleet, timeout, mission)
+            observer.note("deployed", "DEPLOY_ALL=true, MOOS_MANUAL_OVERRIDE_ALL=false")
+            pusher = BoundaryPusher("127.0.0.1", mission.boundary_port, connect_timeout=timeout)
+            for number, lines in enumerate(cycles[:2], start=1):
+                report["cycles"].append(await one_cycle(number, lines, pusher, observer, mission, loop_time, timeout))
+            await pusher.close()
+        finally:
+            observer.client.close()
+            client_task.cancel()
+    report["events"] = observer.events
+    write_report(out, observer, report)
+    return report
+
+
+async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer, mission: OilspillMission,
+                    loop_time: float, timeout: float) -> dict:
+    """Push one boundary (one line per forecast horizon) and follow the fleet until it has looped
+    for `loop_time` mission seconds."""
+    before = {phase: observer.phase_count.get(phase, 0) for phase in (STARTING_POSITION, OIL_PATH)}
+    for line in lines:
+        seq = await pusher.push(line)
+    pushed = observer.note("push", f"boundary {number} ({len(lines)} line(s)) accepted, seq {seq}")
+    marks = {}
+    for phase in (STARTING_POSITION, OIL_PATH):
+        await wait_for(lambda: observer.phase_count.get(phase, 0) > before[phase], timeout, f"cycle {number}: {phase}",
+                       mission)
+        marks[phase] = observer.events[-1]["moos_s"] if observer.events[-1]["what"] == phase else observer.moos_now
+    on_loop = observer.moos_now
+    await wait_for(lambda: observer.moos_now - on_loop >= loop_time, timeout, f"cycle {number}: looping", mission)
+    observer.note("looping", f"{loop_time:g} s of containment loops")
+    return {"boundary": number, "seq": seq, "pushed_moos_s": pushed["moos_s"],
+            "station_keeping_s": round(marks[STARTING_POSITION] - pushed["moos_s"], 2),
+            "transit_s": round(marks[OIL_PATH] - marks[STARTING_POSITION], 2),
+            "push_to_loop_s": round(marks[OIL_PATH] - pushed["moos_s"], 2)}
+
+
+def forecaster_ready() -> bool:
+    """The forecaster can only forecast with trained weights (shipped in its weights folder)."""
+    from oilspill_moos.forecaster.train import WEIGHTS_DIR
+
+    return any(Path(WEIGHTS_DIR).glob("*.pt"))
+
+
+async def forecaster_lines(timeout: float) -> list[bytes]:
+    """Run the forecaster process once (`--once`) against a capturing stand-in for pPathAssign.
+
+    The demo has to know where the forecast lies before it can put the fleet near it; the
+    captured lines (one per horizon) are then pushed to the real pPathAssign unchanged.
+    """
+    lines: list[bytes] = []
+
+    async def capture(reader, writer):
+        while line := await reader.readline():
+            lines.append(line)
+            writer.write(f"OK {len(lines)}\n".encode())
+            await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(capture, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    async with server:
+        process = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "oilspill_moos.forecaster", "--once", "--host", "127.0.0.1", "--port", str(port),
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
+        output, _ = await asyncio.wait_for(process.communicate(), timeout)
+    if process.returncode != 0 or not lines:
+        raise RuntimeError(f"forecaster --once failed: {output.decode(errors='replace')[-400:].strip()}")
+    return lines
+
+
+def boundary_source(use_forecaster: bool, timeout: float) -> tuple[list[list[bytes]], str]:
+    """Per cycle, the lines to push: the forecaster's (every horizon, pushed twice: the repeat
+    re-plans) or the two outlines shipped with the mission."""
+    if use_forecaster:
+        lines = asyncio.run(forecaster_lines(timeout))
+        return [lines, lines], "forecaster (ltc-rk4, shipped weights)"
+    return [[line] for line in shipped_boundaries()], SHIPPED_BOUNDARIES.name
+
+
+def start_line_near(cycles: list[list[bytes]], standoff: float) -> tuple[float, float]:
+    """Where the fleet starts: 300 m south of the first forecast's stand-off loop, mid-way across."""
+    from oilspill_moos.geodesy import LocalGrid
+    from oilspill_moos.path_assign import parse_boundary_line
+    from oilspill_moos.planner import containment_region
+
+    grid = LocalGrid(*ORIGIN)
+    region = containment_region(parse_boundary_line(cycles[0][0].decode(), grid).polygon, standoff)
+    west, south, east, _ = region.bounds
+    return (west + east) / 2, south - 300.0
+
+
+def write_report(out: Path, observer: Observer, report: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(8, 8))
+    for i, poly in enumerate(observer.boundaries):
+        xs, ys = zip(*(poly + poly[:1]))
+        ax.fill(xs, ys, color="black", alpha=0.15 + 0.15 * i, label=f"predicted boundary {i + 1}")
+    for i, poly in enumerate(observer.regions):
+        xs, ys = zip(*(poly + poly[:1]))
+        ax.plot(xs, ys, "--", color="orange", lw=1, label="stand-off loop" if i == 0 else None)
+    for name, track in sorted(observer.tracks.items()):
+        _, xs, ys = zip(*track)
+        (line,) = ax.plot(xs, ys, lw=1.2, label=f"{name} track")
+        ax.plot(xs[0], ys[0], "o", color=line.get_color())
+        if name in observer.loops:
+            lx, ly = zip(*observer.loops[name][:1])
+            ax.plot(lx, ly, "*", ms=12, color=line.get_color())
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m east of LongOrigin)")
+    ax.set_ylabel("y (m north of LatOrigin)")
+    ax.set_title("oil-spill containment: tracks, boundaries and loops (* = loop start)")
+    ax.legend(loc="upper left", fontsize=8)
+    fig.savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    (out / "timeline.json").write_text(json.dumps(report, indent=2))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m oilspill_moos.demo", description=__doc__.split("\n\n")[0],
+                                     epilog=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--vehicles", type=int, default=3, help="fleet size (default 3)")
+    parser.add_argument("--warp", type=float, default=10.0, help="MOOSTimeWarp (default 10)")
+    parser.add_argument("--out", type=Path, default=Path("demo-output"), help="report folder (default demo-output)")
+    parser.add_argument("--loop-time", type=float, default=120.0,
+                        help="mission seconds to watch the loops before the next boundary (default 120)")
+    parser.add_argument("--timeout", type=float, default=180.0, help="wall seconds allowed per step (default 180)")
+    parser.add_argument("--source", choices=("auto", "forecaster", "shipped"), default="auto",
+                        help="boundaries from the forecaster, the shipped outlines, or the forecaster when its "
+                             "weights exist (default auto)")
+    args = parser.parse_args(argv)
+    if args.warp <= 0 or args.vehicles < 1:
+        parser.error("--warp must be > 0 and --vehicles >= 1")
+    started = time.monotonic()
+    try:
+        cycles, origin = boundary_source(args.source == "forecaster" or (args.source == "auto" and forecaster_ready()),
+                                         args.timeout)
+        start = start_line_near(cycles, STANDOFF) if origin.startswith("forecaster") else (0.0, 0.0)
+        report = asyncio.run(run_demo(args.out, args.vehicles, args.warp, args.loop_time, args.timeout,
+                                      cycles, origin, start))
+    except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
+        print(f"demo: {exc}", file=sys.stderr)
+        return 1
+    for cycle in report["cycles"]:
+        print(f"boundary {cycle['boundary']}: push -> all on the loop in {cycle['push_to_loop_s']:.1f} mission s "
+              f"(station-keeping {cycle['station_keeping_s']:.1f} s, transit {cycle['transit_s']:.1f} s)")
+    print(f"demo: done in {time.monotonic() - started:.0f} s; report in {args.out}/ (tracks.png, timeline.json)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
