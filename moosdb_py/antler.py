@@ -32,6 +32,7 @@ from .source import MissionFileError
 APP_GROUP = "moosdb_py.apps"
 DB_NAMES = ("MOOSDB", "moosdb")
 DB_TARGET = "moosdb_py.moosdb:main"
+DB_CONSOLE_SCRIPT = "moosdb"
 STOP_GRACE = 3.0          # seconds a child gets between SIGTERM and SIGKILL
 DB_READY_TIMEOUT = 10.0
 LAST_LINES = 8
@@ -82,9 +83,20 @@ class LaunchSpec:
         return self.target is not None and not self.is_db and _load(self.target, check_class=True) is not None
 
     def argv(self) -> list[str]:
-        if self.target is not None:
-            return [sys.executable, "-c", _BOOT, self.target, self.name, *self.args]
-        return [self.executable, *self.args]
+        """The app's console script next to this interpreter (so `ps` shows its name), else a boot line."""
+        if self.target is None:
+            return [self.executable, *self.args]
+        script = _console_script(DB_CONSOLE_SCRIPT if self.is_db else Path(self.run.exe).name)
+        if script is not None:
+            return [sys.executable, script, *self.args]
+        return [sys.executable, "-c", _BOOT, self.target, self.name, *self.args]
+
+
+def _console_script(name: str) -> str | None:
+    if not any(ep.name == name for ep in metadata.entry_points(group="console_scripts", name=name)):
+        return None
+    script = Path(sys.executable).parent / name
+    return str(script) if script.is_file() else None
 
 
 def _load(target: str, check_class: bool = False):

@@ -12,9 +12,9 @@ import pytest
 
 from helpers import async_wait_until, wait_until
 from moosdb_py.alog import read_alog
-from moosdb_py.antler import DB_TARGET, expanded_mission, plan
+from moosdb_py.antler import DB_TARGET, LaunchSpec, expanded_mission, plan
 from moosdb_py.client import MOOSClient
-from moosdb_py.mission import read_mission
+from moosdb_py.mission import AntlerRun, Where, read_mission
 from moosdb_py.source import MissionFileError
 
 ANTLER = """ServerHost = localhost
@@ -55,11 +55,21 @@ def test_plan_resolves_python_apps_the_db_and_path_programs(tmp_path):
         ("pLogger_2", "moosdb_py.logger:Logger", None, [str(path), "pLogger_2"]),
         ("sleep", None, subprocess.run(["which", "sleep"], capture_output=True, text=True).stdout.strip(), ["300"]),
         ("iTool", None, str(tool), [str(path), "iTool"])]
-    assert specs[1].argv()[:2] == [sys.executable, "-c"] and specs[1].argv()[3:] == [
-        "moosdb_py.logger:Logger", "pLogger_2", str(path), "pLogger_2"]
+    bin_dir = Path(sys.executable).parent
+    assert specs[0].argv() == [sys.executable, str(bin_dir / "moosdb"), str(path)]
+    assert specs[1].argv() == [sys.executable, str(bin_dir / "pLogger"), str(path), "pLogger_2"]
     assert problems == [f"{path}:12: cannot launch pNoSuchApp: not a project app and not found on PATH"]
     only, _ = plan(read_mission(path), path, ["pLogger_2", "iTool"])
     assert [s.name for s in only] == ["pLogger_2", "iTool"]
+
+
+@pytest.mark.parametrize("target,expected", [("moosdb_py.xms:main", "ProcessConfig = uXMS"),
+                                             ("moosdb_py.logger:Logger", "ProcessConfig = pLogger")])
+def test_apps_without_a_console_script_start_through_the_boot_line(tmp_path, target, expected):
+    run = AntlerRun(exe="pPlugin", moos_name="pPlugin", source=Where(file=tmp_path / "m.moos", line=1))
+    argv = LaunchSpec(run, ["--example"], target=target).argv()
+    assert argv[1] == "-c"
+    assert expected in subprocess.run(argv, capture_output=True, text=True, timeout=20).stdout
 
 
 def test_plan_needs_an_antler_block(tmp_path):
