@@ -29,16 +29,17 @@ subcommands (each has its own --help):
 
 EXAMPLE = """\
 # The forecaster is an external process, not a MOOS app: it has no ProcessConfig block.
-# Its settings are command-line flags (defaults shown):
-python -m oilspill_moos.forecaster \\
-    --host 127.0.0.1 --port 9100 \\       # pPathAssign's boundary server
-    --model ltc-rk4 \\                     # ltc-rk4 | ltc-euler | ltc-fused | lstm
-    --weights oilspill_moos/forecaster/weights \\
-    --interval 60 \\                       # seconds between polls of the observations
-    --connect-timeout 30                  # seconds to keep retrying pPathAssign
-#   --observations DIR                    # polygon files to watch (default: replay a held-out scenario)
-#   --once                                # forecast and push once, then exit
-#   --wind U,V --current U,V --sea-temp C # forcing when the files carry none (default: training mean)
+# Its settings are command-line flags, every one shown with its default:
+#   --host 127.0.0.1            pPathAssign's boundary server
+#   --port 9100
+#   --model ltc-fused           ltc-fused | ltc-rk4 | ltc-euler | lstm
+#   --weights oilspill_moos/forecaster/weights
+#   --interval 60               seconds between polls of the observations
+#   --connect-timeout 30        seconds to keep retrying pPathAssign
+#   --observations DIR          polygon files to watch (default: replay a held-out shipped scenario)
+#   --once                      forecast and push once, then exit
+#   --wind U,V  --current U,V  --sea-temp C   forcing when the files carry none (default: training mean)
+python -m oilspill_moos.forecaster --host 127.0.0.1 --port 9100 --model ltc-fused --interval 60
 """
 
 INTERFACE = """\
