@@ -157,26 +157,35 @@ def _init_entries(src: SourceLine, rest: str, deferred: bool) -> list[InitEntry]
 
 
 def _check_general(spec: BehaviorSpec) -> None:
-    """Syntax checks every behaviour type shares: conditions, flags, pwt, name, duration."""
+    """Syntax checks every behaviour type shares: conditions, flags, pwt, name, duration.
+
+    A value still holding an nsplug macro (`$(X)`, `%(X)`) that fails is let through: a template
+    is judged after expansion (the helm re-checks every value when it builds the behaviour).
+    """
     for p in spec.params:
-        key = p.key.lstrip("_")
-        try:
-            if key == "condition":
-                parse_behavior_condition(p.value)
-            elif key in FLAG_KINDS or key in ("cycleflag", "wptflag", "spawnx_flag"):
-                parse_flag(p.value)
-            elif key in ("pwt", "priority", "priwt"):
-                number = as_number(p.value)
-                if number is None or number < 0:
-                    raise p.error(f"{p.key} must be a number >= 0, got '{p.value}'")
-            elif key in ("name", "descriptor") and not _NAME_OK.match(p.value):
-                raise p.error(f"bad behavior name '{p.value}'")
-            elif key == "duration" and p.value.lower() not in ("no-time-limit",) and as_number(p.value) is None:
-                raise p.error(f"duration must be seconds or no-time-limit, got '{p.value}'")
-            elif key == "perpetual" and p.value.lower() not in ("true", "false"):
-                raise p.error(f"perpetual must be true or false, got '{p.value}'")
-        except (ConditionError, FlagError) as exc:
-            raise p.error(f"{p.key}: {exc}") from None
+        problem = _general_problem(p.key.lstrip("_"), p.value)
+        if problem and not ("$(" in p.value or "%(" in p.value):
+            raise p.error(f"{p.key}: {problem}")
+
+
+def _general_problem(key: str, value: str) -> str | None:
+    try:
+        if key == "condition":
+            parse_behavior_condition(value)
+        elif key in FLAG_KINDS or key in ("cycleflag", "wptflag", "spawnx_flag"):
+            parse_flag(value)
+    except (ConditionError, FlagError) as exc:
+        return str(exc)
+    number = as_number(value)
+    if key in ("pwt", "priority", "priwt") and (number is None or number < 0):
+        return f"must be a number >= 0, got '{value}'"
+    if key in ("name", "descriptor") and not _NAME_OK.match(value):
+        return f"bad behavior name '{value}'"
+    if key == "duration" and value.lower() != "no-time-limit" and number is None:
+        return f"must be seconds or no-time-limit, got '{value}'"
+    if key == "perpetual" and value.lower() not in ("true", "false"):
+        return f"must be true or false, got '{value}'"
+    return None
 
 
 class _Parser:

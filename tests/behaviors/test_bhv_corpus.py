@@ -146,3 +146,10 @@ def test_lab_meta_matches_golden_targ(corpus, vname, start):
         return ([(i.var, i.value) for i in b.initializes], [(m.var, m.value, m.else_value) for m in b.modes],
                 [(s.type, [(p.key, " ".join(p.value.split())) for p in s.params]) for s in b.behaviors])
     assert facts(meta) == facts(targ)
+
+
+def test_unexpanded_nsplug_macros_wait_for_expansion():
+    text = "Behavior = BHV_Loiter\n{\n pwt = $(PWT)\n condition = GO_$(VNAME) = true\n name = l_%(VNAME)\n}\n"
+    assert parse_bhv(bhv_lines(text)).behaviors[0].get("pwt") == "$(PWT)"
+    with pytest.raises(MissionFileError, match="t.bhv:3: pwt: must be a number >= 0"):
+        parse_bhv(bhv_lines(text.replace("$(PWT)", "heavy")))

@@ -76,9 +76,9 @@ async def drive(port: int) -> dict:
     for var in ("IVPHELM_STATE", "DESIRED_HEADING", "DESIRED_SPEED", "ARRIVED"):
         client.register(var)
 
-    async def until(var, value, timeout=20.0):
+    async def until(var, value, timeout=20.0, after=0):
         deadline = asyncio.get_running_loop().time() + timeout
-        while value not in seen.get(var, []):
+        while value not in seen.get(var, [])[after:]:
             assert asyncio.get_running_loop().time() < deadline, f"no {var}={value}; seen {seen}"
             for key, v in dict(NAV_X=x[0], NAV_Y=0.0, NAV_HEADING=90.0, NAV_SPEED=2.0).items():
                 client.notify(key, v)
@@ -89,8 +89,9 @@ async def drive(port: int) -> dict:
     client.notify("DEPLOY", "true")
     await until("DESIRED_HEADING", 90.0)
     x[0] = 99.0
+    driving = len(seen["DESIRED_SPEED"])
     await until("ARRIVED", "true")
-    await until("DESIRED_SPEED", 0.0)
+    await until("DESIRED_SPEED", 0.0, after=driving)
     client.close()
     await task
     return seen
