@@ -66,11 +66,45 @@ def _vertex(item: str) -> tuple[float, float] | None:
     return _number(parts[0], "x"), _number(parts[1], "y")
 
 
+def lawnmower(props: dict[str, str]) -> np.ndarray:
+    """A back-and-forth survey over a width x height box about (x, y), rotated `degs` clockwise.
+
+    Rows run north-south (`rows=ns`, the default) or east-west (`rows=ew`), `swath` apart,
+    starting at corner `start` (tl, tr, bl, br; default tl).
+    """
+    missing = [k for k in ("x", "y", "width", "height", "swath") if k not in props]
+    if missing:
+        raise GeometryError(f"lawnmower needs {', '.join(missing)}")
+    x, y, width, height, swath = (_number(props[k], k) for k in ("x", "y", "width", "height", "swath"))
+    if width <= 0 or height <= 0 or swath <= 0:
+        raise GeometryError("lawnmower needs width, height and swath > 0")
+    rows, start = props.get("rows", "ns").lower(), props.get("start", "tl").lower()
+    if rows not in ("ns", "ew") or start not in ("tl", "tr", "bl", "br"):
+        raise GeometryError("lawnmower: rows must be ns or ew, start tl, tr, bl or br")
+    across, along = (width, height) if rows == "ns" else (height, width)
+    offsets = np.arange(0.0, across + 1e-9, swath) - across / 2
+    from_right, from_top = start[1] == "r", start[0] == "t"
+    if (from_right if rows == "ns" else from_top):
+        offsets = -offsets  # first row on the starting side
+    ends = np.array([along / 2, -along / 2]) * (1 if (from_top if rows == "ns" else from_right) else -1)
+    pts = []
+    for i, off in enumerate(offsets):
+        for end in (ends if i % 2 == 0 else ends[::-1]):
+            pts.append((off, end) if rows == "ns" else (end, off))
+    local = np.array(pts)
+    a = math.radians(_number(props.get("degs", "0"), "degs"))
+    rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
+    return local @ rot.T + (x, y)
+
+
 def parse_seglist(text: str) -> np.ndarray:
-    """A point list in abbreviated (`x,y:x,y`) or standard (`pts={...}`) form."""
+    """A point list in abbreviated (`x,y:x,y`) or standard (`pts={...}`) form, or a lawnmower pattern."""
     s = _blankless(text)
     low = s.lower()
-    if low.startswith("format=") or low.startswith("lawnmower") or low.startswith("radial"):
+    if low.startswith("format=lawnmower") or low.startswith("lawnmower:"):
+        body = s[len("format=lawnmower"):] if low.startswith("format=") else s[len("lawnmower:"):]
+        return lawnmower(_split_props(body.strip(",:")))
+    if low.startswith("format=") or low.startswith("radial"):
         raise GeometryError(f"'{text}' is a generated pattern, not a point list")
     if "pts={" in low:
         start = low.index("pts={") + 5

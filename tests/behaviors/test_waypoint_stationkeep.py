@@ -38,6 +38,15 @@ def test_geometry_strings():
             parse_polygon(bad)
 
 
+def test_lawnmower_pattern():
+    pts = parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20, swath=10")
+    assert pts[:4].tolist() == [[-20, 10], [-20, -10], [-10, -10], [-10, 10]] and len(pts) == 10
+    turned = parse_seglist("lawnmower: x=5, y=5, width=40, height=20, swath=10, rows=ew, start=bl, degs=90")
+    assert turned[:2] == pytest.approx(np.array([[-5, 25], [-5, -15]]))
+    with pytest.raises(GeometryError):
+        parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20")
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.tuples(st.integers(-500, 500), st.integers(-500, 500)), min_size=1, max_size=8))
 def test_seglist_round_trip(points):
