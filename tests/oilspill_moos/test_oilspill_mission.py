@@ -1,0 +1,91 @@
+"""End to end: missions/oilspill with 3 vehicles under time warp, real processes on loopback ports.
+
+One mission run is shared by the two tests (module fixture) to stay inside the time budget: the
+first follows a boundary through every phase and checks the vehicles' alogs, the second kills a
+vehicle during OIL-PATH and checks that the loop is re-shared between the other two.
+"""
+import asyncio
+import math
+import threading
+
+import pytest
+
+from helpers import wait_until
+from moosdb_py.alog import read_alog
+from oilspill_moos.demo import OilspillMission, Observer
+from oilspill_moos.forecaster.push import push_lines
+from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec
+
+WARP = 10.0
+SPILL = "pts={-30,60:30,60:30,120:-30,120},label=test-spill\n"  # local metres, north of the start line
+CAPTURE_RADIUS = 5.0  # the starting-position waypoint's, in meta_vehicle.bhv
+TIMEOUT = 40.0        # wall seconds for any one step
+
+
+@pytest.fixture(scope="module")
+def running(tmp_path_factory):
+    mission = OilspillMission(tmp_path_factory.mktemp("oilspill"), vehicles=3, warp=WARP, standoff=10.0,
+                              node_timeout=20.0)
+    mission.start()
+    loop = asyncio.new_event_loop()
+    observer = Observer("127.0.0.1", mission.shoreside.moos_port, WARP)
+    thread = threading.Thread(target=loop.run_until_complete, args=(observer.client.run(),), daemon=True)
+    thread.start()
+    try:
+        wait_until(lambda: mission.dead() or observer.vehicles_seen() >= set(mission.fleet), timeout=TIMEOUT)
+        assert not mission.dead(), f"communities stopped: {mission.dead()}"
+        asyncio.run_coroutine_threadsafe(observer.deploy(mission.fleet, TIMEOUT, mission), loop).result(TIMEOUT + 5)
+        yield mission, observer
+    finally:
+        loop.call_soon_threadsafe(observer.client.close)
+        thread.join(timeout=5)
+        mission.stop()
+
+
+def mode_changes(alog_path):
+    modes = []
+    for entry in read_alog(alog_path).entries:
+        if entry.key == "MODE" and (not modes or modes[-1] != entry.value):
+            modes.append(entry.value)
+    return modes
+
+
+def test_three_vehicles_go_through_every_phase_and_keep_looping(running):
+    mission, observer = running
+    assert push_lines([SPILL.encode()], port=mission.boundary_port) == [1]
+    wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
+    looping_since = observer.moos_now
+    wait_until(lambda: observer.moos_now - looping_since > 60, timeout=TIMEOUT)  # a minute of loop, mission time
+    assert observer.phase_count.get(STARTING_POSITION) == 1 and not observer.dropped
+    for name in mission.fleet:
+        wait_until(lambda: "ACTIVE:OIL-PATH" in mode_changes(mission.alog(name)), timeout=TIMEOUT)
+        alog = read_alog(mission.alog(name))
+        modes = mode_changes(mission.alog(name))
+        order = [modes.index(m) for m in ("ACTIVE:STATION-KEEPING", "ACTIVE:STARTING-POSITION", "ACTIVE:OIL-PATH")]
+        assert order == sorted(order), f"{name}: modes in the wrong order: {modes}"
+        start = parse_polygon_spec("pts={" + str(alog.values("STARTING_POSITION_UPDATES")[-1]).split("=", 1)[1] + "}")[0]
+        xs, ys = alog.values("NAV_X"), alog.values("NAV_Y")
+        closest = min(math.hypot(x - start[0], y - start[1]) for x, y in zip(xs, ys))
+        assert closest <= CAPTURE_RADIUS + 1.0, f"{name} came no closer than {closest:.1f} m to its start"
+        loop = observer.loops[name]
+        assert len(loop) >= 4 and loop[0] == pytest.approx(start, abs=0.1)
+        assert alog.values("MODE")[-1] == "ACTIVE:OIL-PATH"
+        hits = [v for v in alog.values("WPT_INDEX") if isinstance(v, float)]
+        assert hits and max(hits) >= 1, f"{name} has not advanced along its loop"
+
+
+def test_vehicle_killed_in_oil_path_is_dropped_and_the_loop_reshared(running):
+    mission, observer = running
+    if observer.phase_count.get(OIL_PATH, 0) == 0:
+        assert push_lines([SPILL.encode()], port=mission.boundary_port)
+        wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
+    loops_before = observer.phase_count[OIL_PATH]
+    mission.stop_community("cal")
+    wait_until(lambda: "cal" in observer.dropped, timeout=TIMEOUT)
+    wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) > loops_before, timeout=TIMEOUT)
+    assert "planned=2" in observer.status or wait_until(lambda: "planned=2" in observer.status, timeout=10)
+    starts = [observer.loops[name][0] for name in ("abe", "ben")]
+    region = observer.regions[-1]
+    perimeter = sum(math.dist(region[i], region[(i + 1) % len(region)]) for i in range(len(region)))
+    # two vehicles on one loop: their starts are half a perimeter apart along it, so far apart in the plane
+    assert math.dist(*starts) > perimeter / 6
