@@ -91,7 +91,8 @@ def generate(communities: list[Community], out_dir: Path) -> list[Path]:
 
 def launch(files: list[Path], antler_args: list[str]) -> int:
     """One pAntler per community, each in its own process group; stop them all on a signal."""
-    children = [subprocess.Popen(["pAntler", f.name, *antler_args], cwd=f.parent, start_new_session=True)
+    antler = [sys.executable, "-m", "moosdb_py.antler"]  # pAntler of this interpreter's install
+    children = [subprocess.Popen([*antler, *antler_args, f.name], cwd=f.parent, start_new_session=True)
                 for f in files]
     stopping = False
 
