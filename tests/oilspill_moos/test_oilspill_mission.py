@@ -89,3 +89,82 @@ def test_vehicle_killed_in_oil_path_is_dropped_and_the_loop_reshared(running):
     perimeter = sum(math.dist(region[i], region[(i + 1) % len(region)]) for i in range(len(region)))
     # two vehicles on one loop: their starts are half a perimeter apart along it, so far apart in the plane
     assert math.dist(*starts) > perimeter / 6
+
+
+# ---- the vehicle behaviour file on the helm engine alone (no processes) ----------------------
+
+from behaviors.bhv_file import parse_bhv  # noqa: E402
+from behaviors.domain import IvPDomain, parse_domain_line  # noqa: E402
+from behaviors.helm import Helm  # noqa: E402
+from moosdb_py.nsplug import preprocess  # noqa: E402
+from oilspill_moos.demo import MISSION_DIR  # noqa: E402
+
+
+class VehicleHelm:
+    """meta_vehicle.bhv expanded with nsplug, driven by hand: mail in, posts out, position set directly."""
+
+    def __init__(self, tmp_path, **defines):
+        target = tmp_path / "targ_abe.bhv"
+        lines = preprocess(MISSION_DIR / "meta_vehicle.bhv", {"VNAME": "abe", "START_POS": "0,0", **defines})
+        target.write_text("".join(line.text + "\n" for line in lines))
+        domain = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
+        self.helm = Helm([parse_bhv(preprocess(target), target)], domain, "abe", active_start=True)
+        self.now = 0.0
+        self.posts = self.helm.startup(self.now)
+        self.at(0.0, 0.0)
+
+    def at(self, x, y):
+        for key, value in (("NAV_X", x), ("NAV_Y", y), ("NAV_HEADING", 0.0), ("NAV_SPEED", 0.0)):
+            self.helm.on_mail(key, value, self.now)
+
+    def mail(self, **values):
+        for key, value in values.items():
+            self.helm.on_mail(key, value, self.now)
+
+    def run(self, seconds):
+        for _ in range(int(seconds * 4)):
+            self.now += 0.25
+            posts = self.helm.iterate(self.now)
+            self.posts += posts
+            for key, value, _ in posts:  # the helm's own flags come back as mail, as through the MOOSDB
+                if key in ("STATION_KEEP", "COMMS_LOST", "DEPLOY"):
+                    self.helm.on_mail(key, value, self.now)
+        return self
+
+    def last(self, key):
+        return next((value for k, value, _ in reversed(self.posts) if k == key), None)
+
+
+def test_vehicle_modes_follow_the_shore_and_the_arrival_flag(tmp_path):
+    v = VehicleHelm(tmp_path).run(2)
+    assert v.last("MODE") == "INACTIVE"
+    v.mail(DEPLOY="true", SHORE_HEARTBEAT="true")
+    assert v.run(2).last("MODE") == "ACTIVE:STATION-KEEPING"
+    v.mail(STARTING_POSITION_UPDATES="points=100,0", STATION_KEEP="false", OILSPILL_PHASE="STARTING-POSITION")
+    assert v.run(1).last("MODE") == "ACTIVE:STARTING-POSITION"
+    assert v.last("DESIRED_SPEED") == pytest.approx(2.5)
+    v.at(98, 0)
+    v.run(1)
+    assert v.last("REACHED_STARTING_POSITION") == "true"
+    assert v.last("MODE") == "ACTIVE:STATION-KEEPING"  # holds its point until everyone has arrived
+    v.mail(OIL_PATH_UPDATES="points=100,0:100,100:0,100:0,0#repeat=forever", STATION_KEEP="false",
+           OILSPILL_PHASE="OIL-PATH", SHORE_HEARTBEAT="true")
+    assert v.run(1).last("MODE") == "ACTIVE:OIL-PATH"
+    assert v.last("DESIRED_SPEED") == pytest.approx(2.0)
+    v.mail(RETURN="true")
+    assert v.run(1).last("MODE") == "ACTIVE:RETURNING"
+
+
+def test_comms_watchdog_returns_or_holds_when_the_heartbeat_stops(tmp_path):
+    for action, mode in (("return", "ACTIVE:RETURNING"), ("hold", "ACTIVE:STATION-KEEPING")):
+        v = VehicleHelm(tmp_path, COMMS_TIMEOUT="20", COMMS_LOSS=action)
+        v.mail(DEPLOY="true", STATION_KEEP="false", OILSPILL_PHASE="OIL-PATH",
+               OIL_PATH_UPDATES="points=100,0:100,100:0,100:0,0#repeat=forever")
+        for _ in range(5):  # heartbeats keep the watchdog quiet
+            v.mail(SHORE_HEARTBEAT="true")
+            v.run(10)
+        assert v.last("MODE") == "ACTIVE:OIL-PATH" and v.last("COMMS_LOST") == "false"
+        v.at(100, 50)  # out on the loop, away from base
+        v.run(25)  # silence for longer than COMMS_TIMEOUT
+        assert v.last("COMMS_LOST") == "true"
+        assert v.last("MODE") == mode, action
