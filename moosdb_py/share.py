@@ -369,6 +369,12 @@ PUBLICATIONS:
   every variable received from another community, as sent (source, community, time kept)
 """
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # Mail is forwarded as it arrives, not at the next AppTick (the C++ pShare's
+        # REGULAR_ITERATE_AND_COMMS_DRIVEN_MAIL): a bridge should add no tick of latency.
+        self.client.on_mail = self.on_new_mail
+
     def on_startup(self) -> None:
         cfg = self.config
         base_port = cfg.get("multicast_base_port") or str(DEFAULT_MULTICAST_BASE_PORT)
