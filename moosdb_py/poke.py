@@ -74,6 +74,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--host", "--serverhost", "--moos_host", dest="host", help="MOOSDB host (default: mission or localhost)")
     p.add_argument("--port", "--serverport", "--moos_port", dest="port", type=int,
                    help="MOOSDB port (default: mission or 9000)")
+    p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
+                   help="the community's time warp, so pokes carry its MOOS time (default: mission or 1)")
     p.add_argument("--cache", action="store_true", help="also poke the poke = lines of the mission's uPokeDB block")
     p.add_argument("--alias", default="uPokeDB", help="MOOS name of this client (default uPokeDB)")
     p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT,
@@ -140,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("nothing to poke: give VAR=value or VAR:=string")
         host = args.host or (mission.server_host if mission else "localhost")
         port = args.port or (mission.server_port if mission else 9000)
-        warp = mission.time_warp if mission else 1.0
+        warp = args.time_warp or (mission.time_warp if mission else 1.0)
     except (ValueError, MissionFileError) as exc:
         print(f"uPokeDB: {exc}", file=sys.stderr)
         return 1

@@ -121,6 +121,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--serverhost", "--host", "--moos_host", dest="host", help="MOOSDB host (default: mission or localhost)")
     p.add_argument("--serverport", "--port", "--moos_port", dest="port", type=int,
                    help="MOOSDB port (default: mission or 9000)")
+    p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
+                   help="the community's time warp, for the (T)ime column (default: mission or 1)")
     p.add_argument("--alias", default="uXMS", help="MOOS name of this client (default uXMS)")
     p.add_argument("--example", action="store_true", help="print an example uXMS config block")
     p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
@@ -188,7 +190,8 @@ def options_from(args: argparse.Namespace) -> Options:
         raise ValueError("nothing to watch: name variables, use --all, or give var = lines in the uXMS block")
     host = args.host or (mission.server_host if mission else "localhost")
     port = args.port or (mission.server_port if mission else 9000)
-    return Options(mission, names, sources, show, history, host, port, mission.time_warp if mission else 1.0)
+    warp = args.time_warp or (mission.time_warp if mission else 1.0)
+    return Options(mission, names, sources, show, history, host, port, warp)
 
 
 async def scope_main(args: argparse.Namespace, opts: Options, out=sys.stdout) -> int:

@@ -169,7 +169,8 @@ async def tool(name, *args):
 
 @pytest.mark.parametrize("one_process", [False, True], ids=["processes", "one-process"])
 def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
-    """pAntler runs missions/hello; uPokeDB deploys, uXMS shows it; the alog has it all; nothing is left."""
+    """pAntler runs missions/hello; uPokeDB deploys, the vehicle heads east, uXMS shows it; the alog has it all;
+    nothing is left behind."""
     port = free_port()
     proc = pantler(HELLO / "hello.moos", "--nsplug", f"PORT={port}", "--nsplug", f"LOGDIR={tmp_path}",
                    "--nsplug", f"BHV_DIR={HELLO}", "--MOOSTimeWarp=4", *(["--one-process"] if one_process else []),
@@ -181,15 +182,14 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
         watcher = MOOSClient("watcher", "127.0.0.1", port, time_warp=4,
                              on_mail=lambda mail: latest.update((m.key, m.value) for m in mail),
                              on_connect=lambda: [watcher.register(k) for k in
-                                                 ("LOGGER_DIRECTORY", "IVPHELM_STATE", "DESIRED_SPEED")])
+                                                 ("LOGGER_DIRECTORY", "IVPHELM_STATE", "NAV_X", "NAV_SPEED")])
         comms = asyncio.create_task(watcher.run())
         try:
-            # the logger and the helm are up and registered once their first posts are seen
-            await async_wait_until(lambda: "LOGGER_DIRECTORY" in latest and "IVPHELM_STATE" in latest, timeout=30)
-            await tool("poke", "--port", port, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false",
-                       "NAV_X=0", "NAV_Y=0", "NAV_HEADING=0", "NAV_SPEED=0", "NAV_DEPTH=0")
-            await async_wait_until(lambda: latest.get("DESIRED_SPEED") == 1.5, timeout=20)
-            return await tool("xms", "--port", port, "DEPLOY", "DESIRED_SPEED", "IVPHELM_STATE", "--once")
+            # the logger, the simulator and the helm are up and registered once their first posts are seen
+            await async_wait_until(lambda: {"LOGGER_DIRECTORY", "IVPHELM_STATE", "NAV_X"} <= latest.keys(), timeout=30)
+            await tool("poke", "--port", port, "--warp", 4, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false")
+            await async_wait_until(lambda: latest.get("NAV_SPEED", 0) > 0.5 and latest["NAV_X"] > 1, timeout=30)
+            return await tool("xms", "--port", port, "--warp", 4, "DEPLOY", "DESIRED_SPEED", "IVPHELM_STATE", "--once")
         finally:
             watcher.close()
             await asyncio.wait([comms], timeout=5)
@@ -205,10 +205,11 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
     rows = {line.split()[0]: line.split()[-1] for line in shown.splitlines()[2:]}
     assert rows == {"DEPLOY": '"true"', "DESIRED_SPEED": "1.5", "IVPHELM_STATE": '"DRIVE"'}
     pids = [int(p) for p in re.findall(r"launched \S+ \(pid (\d+)\)", output.text)]
-    assert len(pids) == (1 if one_process else 3) and proc.returncode == 0, output.text
+    assert len(pids) == (1 if one_process else 5) and proc.returncode == 0, output.text
     assert not [pid for pid in pids if alive(pid)]
     (folder,) = tmp_path.glob("LOG_HELLO_*")
     log = read_alog(folder / f"{folder.name}.alog")
     assert log.last("DEPLOY").value == "true" and log.last("DEPLOY").source == "uPokeDB"
     assert 1.5 in log.values("DESIRED_SPEED") and "DRIVE" in log.values("IVPHELM_STATE")
+    assert log.last("NAV_X").value > 1 and log.last("NAV_X").source == "uSimMarineV22"
     assert f"ServerPort   = {port}" in (folder / f"{folder.name}._moos").read_text()
