@@ -149,6 +149,7 @@ class Settings:
 
     standoff: float = 50.0
     coordinate_timeout: float = 30.0
+    arrival_timeout: float = 600.0
     node_timeout: float = 20.0
     capture_radius: float = 10.0
     transit_speed: float = 2.0
@@ -249,6 +250,11 @@ class Coordinator:
                 self._drop(vehicle, now)
         if self.phase == STATION_KEEPING:
             self._maybe_plan(now)
+        elif self.phase == STARTING_POSITION and now - self.phase_started > self.settings.arrival_timeout:
+            late = sorted(set(self.plan.starts) - self.arrived)
+            self._post("OILSPILL_WARNING", f"arrival time-out: {':'.join(late)} not at the start; "
+                                           f"looping anyway (they join the loop at their start)")
+            self._begin_oil_path(now)
         if now - self._last_heartbeat >= self.settings.heartbeat_interval:
             self._last_heartbeat = now
             self._post("SHORE_HEARTBEAT_ALL", "true")
@@ -349,6 +355,7 @@ class Coordinator:
             vehicle.dropped = False
             self._post("OILSPILL_REJOINED", name)
             self._post(f"COMMS_LOST_{name.upper()}", "false")
+            self._post(f"DEPLOY_{name.upper()}", "true")  # its watchdog may have parked it at base
             if self.phase in (STARTING_POSITION, OIL_PATH) and self.plan:
                 self._reshare(now)
             elif self.phase == STATION_KEEPING:
@@ -418,6 +425,7 @@ ProcessConfig = pPathAssign
   fleet               =             // expected vehicles, abe:ben:cal; empty: whoever reports
   standoff            = 50          // metres the loop stays outside the predicted boundary
   coordinate_timeout  = 30          // s to wait for every VEHICLE_COORDINATES before planning
+  arrival_timeout     = 600         // s after which the loops start even if someone is not at its point
   node_timeout        = 20          // s without NODE_REPORT before a vehicle is dropped
   capture_radius      = 10          // m from its start that counts as arrived (backs up the flag)
   transit_speed       = 2.0         // m/s used to estimate arrival when choosing a forecast horizon
@@ -446,7 +454,7 @@ PUBLICATIONS:
   STARTING_POSITION_UPDATES_<V>  "points=x,y"
   OIL_PATH_UPDATES_<V>         "points=x,y:...#repeat=forever[#speed=..]"
   SHORE_HEARTBEAT_ALL          true every heartbeat_interval (vehicle comms watchdog)
-  COMMS_LOST_<V>               false when a dropped vehicle is heard again
+  COMMS_LOST_<V>, DEPLOY_<V>   false / true when a dropped vehicle is heard again
   OILSPILL_DROPPED, OILSPILL_REJOINED   vehicle names
   OILSPILL_STATUS              phase=..,vehicles=a:b,reported=..,planned=..,arrived=..,
                                dropped=..,boundaries=..,boundary_age=..
@@ -459,6 +467,7 @@ PUBLICATIONS:
         self.coordinator = Coordinator(Settings(
             standoff=config_float(cfg, "standoff", 50.0, lo=0),
             coordinate_timeout=config_float(cfg, "coordinate_timeout", 30.0, lo=0),
+            arrival_timeout=config_float(cfg, "arrival_timeout", 600.0, lo=0),
             node_timeout=config_float(cfg, "node_timeout", 20.0, lo=0),
             capture_radius=config_float(cfg, "capture_radius", 10.0, lo=0),
             transit_speed=config_float(cfg, "transit_speed", 2.0, lo=1e-3),

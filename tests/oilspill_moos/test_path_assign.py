@@ -184,6 +184,7 @@ def test_dropout_in_oil_path_reshares_and_rejoin_reshares_again():
     assert arcs[1] - arcs[0] == pytest.approx(c.plan.region.exterior.length / 2)
     c.on_node_report(report("cal", 200, -20), 90.0)
     assert posts(c, "OILSPILL_REJOINED") == ["cal"] and posts(c, "COMMS_LOST_CAL") == ["false"]
+    assert posts(c, "DEPLOY_CAL") == ["true"]
     assert set(c.plan.starts) == {"abe", "ben", "cal"}
 
 
@@ -298,3 +299,17 @@ def test_app_help_example_interface(capsys):
     for flag, text in (("--help", "OK <seq>"), ("--example", "boundary_port"), ("--interface", "OIL_PATH_UPDATES_")):
         assert PathAssign.main([flag]) == 0
         assert text in capsys.readouterr().out
+
+
+def test_arrival_timeout_starts_the_loops_without_the_late_vehicle_blocking():
+    c = fleet_coordinator(arrival_timeout=100, node_timeout=1000)
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    for name in ("abe", "ben", "cal"):
+        c.on_coordinates(f"vname={name},x=0,y=-500", 1.0)
+    c.on_reached("abe", 50.0)
+    c.on_reached("ben", 50.0)
+    c.tick(99.0)
+    assert c.phase == STARTING_POSITION
+    c.tick(102.0)
+    assert c.phase == OIL_PATH and "arrival time-out: cal" in posts(c, "OILSPILL_WARNING")[0]
+    assert posts(c, "OIL_PATH_UPDATES_CAL")
