@@ -3,8 +3,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from behaviors.bhv_file import parse_bhv, read_bhv
+from behaviors.flags import FLAG_KINDS
 from behaviors.helm import build_behavior
 from behaviors.behavior import InfoBuffer
 from moosdb_py.source import MissionFileError, SourceLine
@@ -153,3 +155,21 @@ def test_unexpanded_nsplug_macros_wait_for_expansion():
     assert parse_bhv(bhv_lines(text)).behaviors[0].get("pwt") == "$(PWT)"
     with pytest.raises(MissionFileError, match="t.bhv:3: pwt: must be a number >= 0"):
         parse_bhv(bhv_lines(text.replace("$(PWT)", "heavy")))
+
+
+GENERAL_KEYS = {"condition", "pwt", "priority", "priwt", "name", "descriptor", "duration", "perpetual",
+                "cycleflag", "wptflag", "spawnx_flag", *FLAG_KINDS}
+_word = st.text(alphabet="abcdefghijklmnopqrstuvwxyz_0123456789", min_size=1, max_size=8).filter(
+    lambda w: not w[0].isdigit())
+_value = st.text(alphabet="abcXYZ0123456789.,:-_ =$[]", min_size=1, max_size=20).map(str.strip).filter(
+    lambda v: v and not v.startswith(("{", "}", "//", "#")) and not v.endswith(("{", "\\")) and "//" not in v)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(_word.filter(lambda w: w not in GENERAL_KEYS), _value), max_size=8),
+       st.sampled_from(["\t", "  ", ""]))
+def test_behavior_block_keeps_every_line_in_order(params, indent):
+    body = "\n".join(f"{indent}{k} = {v}" for k, v in params)
+    spec = parse_bhv(bhv_lines(f"Behavior = BHV_Anything\n{{\n{body}\n}}\n")).behaviors[0]
+    assert [(p.key, p.value) for p in spec.params] == [(k, v) for k, v in params]
+    assert [p.line for p in spec.params] == list(range(3, 3 + len(params)))

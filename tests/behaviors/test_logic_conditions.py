@@ -71,3 +71,16 @@ def test_numeric_relations_match_python(a, b, op):
            "!=": operator.ne}
     cond = parse_condition(f"X {op} {b!r}")
     assert cond.evaluate(lookup({"X": a})) == ops[op](a, float(repr(b)))
+
+
+_names = st.sampled_from(["DEPLOY", "MODE", "NAV_X", "RETURN_ALL", "X1"])
+_relations = st.builds(Relation, _names, st.sampled_from(["=", "==", "!=", "<", "<=", ">", ">="]),
+                       st.one_of(st.integers(-99, 99).map(float), st.sampled_from(["true", "ACTIVE:SURVEY", "x_y"])))
+_conditions = st.recursive(_relations, lambda inner: st.one_of(
+    st.builds(Not, inner), st.builds(Junction, st.sampled_from(["and", "or"]), inner, inner)), max_leaves=6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(_conditions)
+def test_printed_condition_parses_back(cond):
+    assert parse_condition(str(cond)) == cond
