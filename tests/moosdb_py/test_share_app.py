@@ -73,18 +73,22 @@ async def stopped(runners, tasks):
 def test_forwarding_renaming_commands_echo_and_bad_datagrams(communities, caplog):
     tmp_path, shore_db, abe_db = communities
     shore_udp, abe_udp = free_udp_port(), free_udp_port()
+    multicast_base = free_udp_port() - 3  # so that multicast_3 is a port nobody uses
     shore_share = Share(write_mission(tmp_path / "shore.moos", "shoreside", shore_db.port, [
         f"input = route = localhost:{shore_udp}",
+        f"multicast_base_port = {multicast_base}",
+        "output = src_name = M, route = multicast_3",
         f"output = src_name = X_ALL, dest_name = X, route = localhost:{abe_udp}",
         f"output = NAV_*->V_:localhost:{abe_udp}",
         f"output = src_name = ECHO_ALL, dest_name = ECHO, route = localhost:{abe_udp}",
     ]))
     abe_share = Share(write_mission(tmp_path / "abe.moos", "abe", abe_db.port, [
-        f"input = route = localhost:{abe_udp}",
+        f"input = route = localhost:{abe_udp} & multicast_3",
+        f"multicast_base_port = {multicast_base}",
         f"output = src_name = ECHO, dest_name = ECHO_ALL, route = localhost:{shore_udp}",  # a loop
     ]))
     shore = Mailbox("poker", shore_db.port, ["X_ALL", "Y", "ECHO_ALL"])
-    abe = Mailbox("watcher", abe_db.port, ["X", "V_NAV_X", "ECHO", "PSHARE_INPUT_SUMMARY"])
+    abe = Mailbox("watcher", abe_db.port, ["X", "V_NAV_X", "ECHO", "M", "PSHARE_INPUT_SUMMARY"])
 
     async def scenario():
         runners = [shore_share, abe_share, shore, abe]
@@ -95,6 +99,8 @@ def test_forwarding_renaming_commands_echo_and_bad_datagrams(communities, caplog
         assert (got.source, got.community) == ("poker", "shoreside")  # the real writer and its community
         shore.client.notify("NAV_X", 12.5)
         await async_wait_until(lambda: abe.values("V_NAV_X") == [12.5], 5)
+        shore.client.notify("M", "to the group")
+        await async_wait_until(lambda: abe.values("M") == ["to the group"], 5)
         # ECHO_ALL -> abe's ECHO -> shore's ECHO_ALL would loop; a pShare drops what it forwards itself
         shore.client.notify("ECHO_ALL", "ping")
         await async_wait_until(lambda: abe_share.counts["echo"] == 1, 5)
@@ -117,7 +123,8 @@ def test_forwarding_renaming_commands_echo_and_bad_datagrams(communities, caplog
         await async_wait_until(lambda: shore_share.counts["oversize"] == 1, 5)
         shore.client.notify("X_ALL", "two")
         await async_wait_until(lambda: abe.values("X") == ["one", "two"], 5)
-        await async_wait_until(lambda: abe.values("PSHARE_INPUT_SUMMARY")[-1:] == [f"localhost:{abe_udp}"], 5)
+        await async_wait_until(lambda: abe.values("PSHARE_INPUT_SUMMARY")[-1:] == [
+            f"localhost:{abe_udp},224.1.1.11:{multicast_base + 3}:multicast_3"], 5)
         await stopped(runners, tasks)
 
     with caplog.at_level(logging.WARNING):
