@@ -6,6 +6,7 @@ synchronous `.slog` table, and an `.xlog` of what the wildcard omitted (WildCard
 """
 from __future__ import annotations
 
+import logging
 import math
 import shutil
 from dataclasses import dataclass, field
@@ -19,6 +20,14 @@ from .moosdb import wild_match
 
 ALWAYS_OMITTED = ("MISSION_FILE",)
 CMD_VAR = "PLOGGER_CMD"
+KNOWN_KEYS = frozenset({
+    "file", "path", "filetimestamp", "asynclog", "synclog", "log", "wildcardlogging", "wildcardpattern",
+    "wildcardomitpattern", "wildcardexclusionlog", "logauxsrc", "doubleprecision", "markexternals",
+    "markdatatype", "utclogdirectories",
+    # handled by every MOOS / appcasting app
+    "apptick", "commstick", "maxapptick", "iteratemode", "sortmailbytime", "catchcommandmessages",
+    "term_reporting", "max_appcast_events", "max_appcast_run_warnings", "app_logging"})
+log = logging.getLogger("moosdb_py.logger")
 
 
 @dataclass(frozen=True)
@@ -81,6 +90,7 @@ class LoggerConfig:
     mark_externals: bool = False
     mark_data_type: bool = False
     utc_log_directories: bool = False
+    unhandled: list[str] = field(default_factory=list)   # `file:line: key` of lines pLogger does not use
 
     @classmethod
     def from_block(cls, block: ProcessConfig | None) -> "LoggerConfig":
@@ -104,6 +114,8 @@ class LoggerConfig:
         config.mark_externals = _bool(block, "MarkExternals", False)
         config.mark_data_type = _bool(block, "MarkDataType", False)
         config.utc_log_directories = _bool(block, "UTCLogDirectories", False)
+        config.unhandled = [f"{e.source}: unhandled parameter {e.key!r}" for e in block.entries
+                            if e.key.lower() not in KNOWN_KEYS]
         precision = block.entry("DoublePrecision")
         if precision is not None:
             config.double_precision = int(_number(precision, precision.value))
@@ -190,7 +202,8 @@ ProcessConfig = pLogger
   MarkDataType  = false     // prefix values with D: or S: (default false)
   DoublePrecision = 5       // decimals of logged doubles (default 5)
 
-  Log = NAV_X @ 0           // VAR @ period [NOSYNC] [MONITOR]; repeatable (default none)
+  Log = NAV_X @ 0           // VAR @ period [NOSYNC] [MONITOR]; repeatable (default none);
+                            // MONITOR also prints each value on the console
   WildCardLogging      = false  // log every variable (default false)
   WildCardPattern      = *      // variable patterns the wildcard takes (default *)
   WildCardOmitPattern  = *_STATUS  // repeatable, comma lists allowed (default none)
@@ -207,6 +220,9 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         self.settings = LoggerConfig.from_block(self.config)
+        for line in self.settings.unhandled:
+            log.warning("%s", line)
+        self.monitored = {r.var for r in self.settings.logs if r.monitor}
         self.lines_written = 0
         self.excluded = 0
         self._open_files()
@@ -249,6 +265,8 @@ PUBLICATIONS:
         for msg in mail:
             if msg.key == CMD_VAR and msg.is_string():
                 self._command(msg.string)
+            if msg.key in self.monitored:
+                print(f"{self.name}: {msg.key} = {msg.value!r} (from {msg.source})", flush=True)
             if self.settings.wanted(msg.key):
                 if self.alog is not None:
                     self.alog.write(msg)

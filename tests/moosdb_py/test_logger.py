@@ -37,6 +37,8 @@ def test_config_lines(tmp_path):
   WildCardOmitPattern = *_STATUS
   WildCardOmitPattern = NAV_PITCH, NAV_YAW
   LogAuxSrc = TRUE
+  AppTick = 4
+  Colour = blue
   DoublePrecision = 3"""))
     assert (config.file, config.path, config.file_timestamp, config.sync_log, config.sync_period) == \
         ("LOG_ABE", "logs", False, True, 0.5)
@@ -44,6 +46,7 @@ def test_config_lines(tmp_path):
                            LogRequest("NAV_Y", 2.5, False, True)]
     assert config.wildcard_omit == ["*_STATUS", "NAV_PITCH", "NAV_YAW"] and config.log_aux_src
     assert config.double_precision == 3
+    assert config.unhandled == [f"{tmp_path / 'm.moos'}:16: unhandled parameter 'Colour'"]
     assert config.wanted("NAV_X") and config.wanted("DEPLOY")
     assert not config.wanted("PHELMIVP_STATUS") and not config.wanted("NAV_YAW") and not config.wanted("MISSION_FILE")
 
