@@ -154,8 +154,11 @@ class BHV_Waypoint(IvPBehavior):
             elif key in ("efficiency_measure",):
                 if low not in ("all", "off"):
                     raise ValueError("efficiency_measure must be all or off")
-            elif key in ("greedy_tour", "shortest_tour", "draw_path_loop", "eager_prev_index_flag"):
-                parse_bool(value, key)
+            elif key in ("greedy_tour", "shortest_tour"):
+                if parse_bool(value, key) and len(self.points) > 1:
+                    self.set_points(self.greedy_tour(*self._ownship()))
+            elif key in ("draw_path_loop", "eager_prev_index_flag"):
+                parse_bool(value, key)  # drawing and PI-macro timing details; accepted
             elif key == "visual_hints":
                 pass  # drawing hints for viewers; accepted, the drawings use fixed defaults
             else:
@@ -163,6 +166,16 @@ class BHV_Waypoint(IvPBehavior):
         except (GeometryError, ConditionError, FlagError) as exc:
             raise ValueError(str(exc)) from None
         return True
+
+    def greedy_tour(self, x: float, y: float) -> np.ndarray:
+        """The points reordered nearest-first, starting from (x, y)."""
+        left, order, here = list(range(len(self.points))), [], np.array((x, y))
+        while left:
+            dists = np.hypot(*(self.points[left] - here).T)
+            nxt = left.pop(int(np.argmin(dists)))
+            order.append(nxt)
+            here = self.points[nxt]
+        return self.points[order]
 
     # ---- macros --------------------------------------------------------------------------
     def macro(self, name: str):

@@ -176,3 +176,11 @@ def test_station_keep_speed_profile_and_hibernation(domain):
     assert np.unravel_index(np.argmax(fn.values), fn.values.shape)[1] == 0
     with pytest.raises(ValueError):
         sk.apply("station_pt", "nowhere")
+
+
+def test_greedy_tour_from_ownship(domain):
+    w, info = waypoint(domain)
+    at(info, 100, 0)
+    w.apply("points", "0,0:90,0:50,0:10,0")
+    w.apply("greedy_tour", "true")
+    assert w.points.tolist() == [[90, 0], [50, 0], [10, 0], [0, 0]]
