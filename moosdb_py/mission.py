@@ -253,14 +253,17 @@ def parse_mission(path: Path, lines: list[SourceLine]) -> Mission:
                 _close_block(mission, block)
                 block = None
             elif text.startswith("{"):
-                raise MissionFileError.at(src, f"unexpected '{{' inside block {block.name} opened at {block.source}")
+                mission.warnings.append(f"{where}: stray '{{' inside block {block.name or '(no header)'} is ignored")
             else:
                 entry = _entry(text, where)
                 if entry is not None:
                     block.entries.append(entry)
                     mission._entries.append(entry)
-        elif text.startswith("{") or text.startswith("}"):
-            raise MissionFileError.at(src, f"'{text[0]}' outside any ProcessConfig block")
+        elif text.startswith("{"):
+            # MOOS skips a block whose header is missing or commented out; so do we, with a warning
+            block = ProcessConfig(name="", source=where)
+        elif text.startswith("}"):
+            mission.warnings.append(f"{where}: stray '}}' outside any block is ignored")
         else:
             entry = _entry(text, where)
             if entry is None or not entry.key:
@@ -271,7 +274,7 @@ def parse_mission(path: Path, lines: list[SourceLine]) -> Mission:
                 if not any(k.lower() == key.lower() for k in mission.globals):
                     mission.globals[key] = entry.moos_value
     if block is not None:
-        raise block.source.error(f"block {block.name} is never closed with '}}'")
+        raise block.source.error(f"block {block.name or '(no header)'} is never closed with '}}'")
     if pending is not None:
         raise pending.source.error(f"ProcessConfig = {pending.name} is not followed by '{{'")
     return mission
@@ -294,6 +297,9 @@ def _entry(text: str, where: Where) -> ConfigEntry | None:
 
 
 def _close_block(mission: Mission, block: ProcessConfig) -> None:
+    if not block.name:
+        mission.warnings.append(f"{block.source}: block without a ProcessConfig header (commented out?) is ignored")
+        return
     if mission.process_config(block.name) is not None:
         first = mission.process_config(block.name)
         mission.warnings.append(f"{block.source}: second block for {block.name} is ignored "

@@ -100,6 +100,19 @@ def test_duplicate_blocks_first_wins_with_a_warning(tmp_path):
                           f"{tmp_path / 'm.moos'}:1)"]
 
 
+def test_tolerated_oddities_are_warnings(tmp_path):
+    """What MOOS reads past without harm: a block whose header is commented out, stray braces."""
+    m = mission(tmp_path, "//ProcessConfig = old\n{\n  Community = ghost\n}\n}\nProcessConfig = a\n{\n{\n x = 1\n}\n"
+                          "just words\n")
+    where = tmp_path / "m.moos"
+    assert [b.name for b in m.blocks] == ["a"] and m.process_config("a").get("x") == "1"
+    assert m.warnings == [f"{where}:2: block without a ProcessConfig header (commented out?) is ignored",
+                          f"{where}:5: stray '}}' outside any block is ignored",
+                          f"{where}:8: stray '{{' inside block a is ignored",
+                          f"{where}:11: ignored line outside any block: just words"]
+    assert m.community == "ghost"   # MOOS's global scan still sees the skipped block's lines
+
+
 def test_moos_dollar_brace_defines(tmp_path, monkeypatch):
     monkeypatch.setenv("MOOS_TEST_HOME", "/home/x")
     m = mission(tmp_path, "define: PORT = 9555\nServerPort = ${PORT}\nPath = ${MOOS_TEST_HOME}/log ${NOPE}\n")
@@ -122,8 +135,7 @@ def test_unexpanded_macro_fails_only_when_the_value_is_used(tmp_path):
     ("ProcessConfig = a\n x = 1\n}\n", r"m.moos:1: ProcessConfig = a is not followed by '\{'"),
     ("ProcessConfig = a {\n}\n", r"m.moos:1: '\{' must be on its own line"),
     ("ProcessConfig = a\n{\n x = 1\nProcessConfig = b\n{\n}\n", r"m.moos:4: ProcessConfig = b inside block a"),
-    ("ProcessConfig = a\n{\n{\n}\n", r"m.moos:3: unexpected '\{' inside block a"),
-    ("x = 1\n}\n", r"m.moos:2: '\}' outside any ProcessConfig block"),
+    ("{\n x = 1\n", r"m.moos:1: block \(no header\) is never closed"),
     ("ProcessConfig =\n{\n}\n", r"m.moos:1: ProcessConfig needs a process name"),
     ("ProcessConfig = a\n", r"m.moos:1: ProcessConfig = a is not followed by"),
     ("ServerPort = 70000\n", r"m.moos:1: ServerPort = '70000' is not a TCP port number"),
