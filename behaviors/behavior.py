@@ -7,7 +7,7 @@ mission-files.md §2.5.
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Union
 
 from .domain import IvPDomain
@@ -293,9 +293,3 @@ class IvPBehavior:
             self.post("BHV_ERROR", f"{self.name}: No ownship NAV_X/NAV_Y in info_buffer", repeatable=True)
             return None
         return x, y, self.info.number("NAV_HEADING"), self.info.number("NAV_SPEED")
-
-
-@dataclass
-class UpdateResult:
-    result: str
-    bad: list[str] = field(default_factory=list)

@@ -58,10 +58,9 @@ class Helm:
 
     def __init__(self, bhv_files: list[BhvFile], domain: IvPDomain, ownship: str = "", *,
                  app_name: str = "pHelmIvP", active_start: bool = False, allow_park: bool = True,
-                 park_on_allstop: bool = False, helm_prefix: str = "", goals_mandatory: bool = False):
+                 park_on_allstop: bool = False, helm_prefix: str = ""):
         self.domain, self.ownship, self.app_name = domain, ownship, app_name
         self.allow_park, self.park_on_allstop, self.helm_prefix = allow_park, park_on_allstop, helm_prefix
-        self.goals_mandatory = goals_mandatory
         self.info = InfoBuffer()
         self.modes = [m for f in bhv_files for m in f.modes]
         self.initializes = [i for f in bhv_files for i in f.initializes]

@@ -88,8 +88,8 @@ PUBLICATIONS
         self.helm = Helm(files, domain, ownship, app_name=self.name, active_start=active,
                          allow_park=_bool(cfg.get("allow_park", "true"), "allow_park"),
                          park_on_allstop=_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
-                         helm_prefix=cfg.get("helm_prefix", "") or "",
-                         goals_mandatory=_bool(cfg.get("goals_mandatory", "false"), "goals_mandatory"))
+                         helm_prefix=cfg.get("helm_prefix", "") or "")
+        _bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
             self.helm.malconfig()
         self.bhv_paths = [f.path for f in files]
