@@ -219,3 +219,17 @@ def test_handshake_between_the_two_states():
     assert "cmd=output,src_name=NODE_REPORT_LOCAL,dest_name=NODE_REPORT,route=localhost:9200" in node_cmds
     assert "cmd=output,src_name=DEPLOY_ALL,dest_name=DEPLOY,route=localhost:9201" in shore_cmds
     assert node.acknowledged and list(shore.nodes) == ["abe"]
+
+
+def test_docs_say_what_the_apps_say():
+    """docs/<App>.md carries the app's --example and --interface text verbatim."""
+    from pathlib import Path
+
+    from moosdb_py.share import Share
+    from oilspill_moos.node_broker import NodeBroker
+    from oilspill_moos.shore_broker import ShoreBroker
+
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    for app in (Share, NodeBroker, ShoreBroker):
+        page = (docs / f"{app.default_name}.md").read_text()
+        assert app.example_config.strip() in page and app.interface.strip() in page, app.default_name

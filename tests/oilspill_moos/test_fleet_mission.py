@@ -137,10 +137,10 @@ def test_fleet_bridges_survive_restarts(tmp_path):
     shore = Watcher("shoreside", ports["shoreside"], ["NODE_REPORT"])
     boats = {v: Watcher(v, ports[v], ["DEPLOY", "X"]) for v in vehicles}
 
-    async def until(predicate, timeout=15.0):
+    async def until(predicate, timeout=30.0):
         await async_wait_until(predicate, timeout, interval=0.05)
 
-    async def poke_until(key, value, seen_by, timeout=15.0):
+    async def poke_until(key, value, seen_by, timeout=30.0):
         """Post on the shoreside (again every half second) until each vehicle in seen_by has it."""
         deadline = time.monotonic() + timeout
         while not all(value in boats[v].values(key.rsplit("_", 1)[0]) for v in seen_by):
