@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .mission import AntlerRun, Mission, parse_mission
 from .nsplug import parse_defines, preprocess
-from .source import MissionFileError
+from .source import MissionFileError, SourceLine
 
 APP_GROUP = "moosdb_py.apps"
 DB_NAMES = ("MOOSDB", "moosdb")
@@ -160,17 +160,21 @@ def expanded_mission(path: Path, defines: dict, overrides: dict[str, str], folde
     """Read the mission; when nsplug or overrides changed its text, write the expansion for the children.
 
     The children read a plain file, as after MOOS-IvP's `nsplug meta.moos targ.moos`; overrides
-    (`--MOOSTimeWarp=10`) go first because the first global line wins.
+    (`--MOOSTimeWarp=10`) go first because the first global line wins. The returned Mission keeps
+    the original file:line of every entry, for messages.
     """
     lines = preprocess(path, defines)
+    original = path.read_text(encoding="latin-1") + "\n"
+    command_line = [SourceLine(f"{k} = {v}", Path("<command line>"), n) for n, (k, v) in enumerate(overrides.items(), 1)]
+    lines = command_line + lines
     mission = parse_mission(path, lines)
     mission.check()
     text = "".join(line.text + "\n" for line in lines)
-    if not overrides and text == path.read_text(encoding="latin-1") + "\n":
+    if text == original:
         return mission, path.resolve()
     target = folder / path.name
-    target.write_text("".join(f"{k} = {v}\n" for k, v in overrides.items()) + text, encoding="latin-1")
-    return parse_mission(target, preprocess(target)), target
+    target.write_text(text, encoding="latin-1")
+    return mission, target
 
 
 def _die_with_parent() -> None:

@@ -92,6 +92,9 @@ def test_templates_and_overrides_are_expanded_for_the_children(tmp_path):
     assert expanded_mission(plain, {}, {}, out)[1] == plain.resolve()
     with pytest.raises(MissionFileError, match=r"meta.moos:1: ServerPort = '\$\(PORT\)'"):
         expanded_mission(meta, {}, {}, out)
+    with pytest.raises(MissionFileError, match=r"<command line>:1: MOOSTimeWarp = 'fast' is not a positive number"):
+        expanded_mission(meta, {"PORT": "1"}, {"MOOSTimeWarp": "fast"}, out)
+    assert mission.antler is None and read_mission(child_file).server_port == 9555
 
 
 def pantler(*args, cwd=None):
