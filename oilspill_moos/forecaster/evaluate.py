@@ -570,7 +570,20 @@ def verdict(ev: Evaluation) -> list[str]:
     return out
 
 
-def write_report(ev: Evaluation, out_md, img_dir, training: dict, real_lines: list[str], command: str) -> None:
+def seed_table(runs: dict[str, Evaluation]) -> list[str]:
+    """Each model's headline numbers under other training seeds (same split, same test scenarios)."""
+    lines = ["| Weights | Model | IoU | Centroid error (km) | Area MAE (km²) |", "|---|---|---|---|---|"]
+    for label, ev in runs.items():
+        for name in methods_in_order(ev):
+            if name in BASELINES:
+                continue
+            lines.append(f"| {label} | {name} | {_fmt(ev.summary('iou', name))} | "
+                         f"{_fmt(ev.summary('centroid_err_km', name))} | {_fmt(ev.summary('area_abs_err_km2', name))} |")
+    return lines
+
+
+def write_report(ev: Evaluation, out_md, img_dir, training: dict, real_lines: list[str], command: str,
+                 other_seeds: dict[str, Evaluation] | None = None) -> None:
     from pathlib import Path
 
     out_md, img_dir = Path(out_md), Path(img_dir)
@@ -604,6 +617,10 @@ def write_report(ev: Evaluation, out_md, img_dir, training: dict, real_lines: li
           *area_period_table(ev, shown[0]), "",
           f"![IoU and centroid error per horizon]({rel / files['horizons']})", "",
           f"![Centroid trajectories and area evolution]({rel / files['trajectories']})", "",
+          *(["## Other training seeds", "",
+              "The same models trained again with other seeds (same split and data), scored on the same "
+              "test scenarios: how much of a difference between models is the luck of one training run.", "",
+              *seed_table({"shipped": ev, **other_seeds}), ""] if other_seeds else []),
           "## Training record", "",
           "| Model | Epochs run | Best epoch | Val MSE at best | Train seconds | LR | α | Seed |",
           "|---|---|---|---|---|---|---|---|"]
@@ -637,6 +654,8 @@ def build_parser(parser=None):
     parser.add_argument("--dwh", type=Path, nargs="*", default=None,
                         help="real DWH polygon files (default: ../shared/data/dwh/*.geojson when present)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (default: %(default)s)")
+    parser.add_argument("--other-seeds", type=Path, nargs="*", default=[],
+                        help="weights directories of the same models trained with other seeds (compared in the report)")
     return parser
 
 
@@ -658,6 +677,11 @@ def main(argv=None, args=None) -> int:
     real_lines = (real_dwh_check([Forecaster(args.weights, k) for k in kinds], dwh) if dwh
                   else ["No real DWH files given (`--dwh FILES`)."])
     command = "python -m oilspill_moos.forecaster evaluate" + (" " + " ".join(argv) if argv else "")
-    write_report(ev, args.report, args.img, training, real_lines, command)
+    others = {}
+    for directory in args.other_seeds:
+        record = json.loads((directory / "metrics.json").read_text())
+        seeds = sorted({r["train_config"]["seed"] for r in record.values()})
+        others[f"seed {', '.join(map(str, seeds))}"] = run_evaluation(directory, seed=args.seed, progress=False)
+    write_report(ev, args.report, args.img, training, real_lines, command, others)
     print(f"report written to {args.report}")
     return 0
