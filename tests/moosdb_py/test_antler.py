@@ -216,3 +216,5 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
     assert 1.5 in log.values("DESIRED_SPEED") and "DRIVE" in log.values("IVPHELM_STATE")
     assert log.last("NAV_X").value > 1 and log.last("NAV_X").source == "uSimMarineV22"
     assert f"ServerPort   = {port}" in (folder / f"{folder.name}._moos").read_text()
+    # the helm asks the logger (PLOGGER_CMD = COPY_FILE_REQUEST) for a copy of its behaviour file
+    assert (folder / f"{folder.name}._bhv").read_text() == (HELLO / "hello.bhv").read_text()

@@ -217,3 +217,16 @@ def test_exactly_one_branch_property(tmp_path_factory, defined):
     defines = {f"M{i}": "1" for i, on in enumerate(defined) if on}
     first = next((f"branch{i}" for i, on in enumerate(defined) if on), "fallback")
     assert body(expand(tmp_path, text, defines)) == [first]
+
+
+PLAIN_LINES = st.lists(st.text(st.characters(min_codepoint=32, max_codepoint=126), max_size=30).filter(
+    lambda t: "$(" not in t and "%(" not in t and "<tag>" not in t and not t.lstrip().startswith("#")), max_size=8)
+
+
+@settings(max_examples=50, deadline=None)
+@given(before=PLAIN_LINES, included=PLAIN_LINES, after=PLAIN_LINES)
+def test_plain_text_passes_through_and_includes_are_transparent(tmp_path_factory, before, included, after):
+    tmp_path = tmp_path_factory.mktemp("plain")
+    (tmp_path / "part.moos").write_text("".join(line + "\n" for line in included))
+    lines = expand(tmp_path, "".join(line + "\n" for line in [*before, "#include part.moos", *after]))
+    assert lines == [*before, *included, "", *after, ""]   # nsplug's empty line at the end of each file
