@@ -23,10 +23,13 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
-from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec, parse_report
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line, parse_polygon_spec, parse_report
+from oilspill_moos.planner import containment_region
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION_DIR = REPO / "missions" / "oilspill"
@@ -187,7 +190,6 @@ class Observer:
     started: float = field(default_factory=time.monotonic)
 
     def __post_init__(self):
-        from moosdb_py.client import MOOSClient
         self.client = MOOSClient("uDemoObserver", self.host, self.port, on_mail=self.on_mail,
                                  on_connect=self.on_connect, time_warp=self.warp)
         self.t0: float | None = None
@@ -325,7 +327,8 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
 
 
 def forecaster_ready() -> bool:
-    """The forecaster can only forecast with trained weights (shipped in its weights folder)."""
+    """The forecaster can only forecast with trained weights (shipped in its weights folder).
+    Imported here: the training module pulls in torch, which the shipped-outline demo does not need."""
     from oilspill_moos.forecaster.train import WEIGHTS_DIR
 
     return any(Path(WEIGHTS_DIR).glob("*.pt"))
@@ -369,10 +372,6 @@ def boundary_source(use_forecaster: bool, timeout: float) -> tuple[list[list[byt
 
 def start_line_near(cycles: list[list[bytes]], standoff: float) -> tuple[float, float]:
     """Where the fleet starts: 300 m south of the first forecast's stand-off loop, mid-way across."""
-    from oilspill_moos.geodesy import LocalGrid
-    from oilspill_moos.path_assign import parse_boundary_line
-    from oilspill_moos.planner import containment_region
-
     grid = LocalGrid(*ORIGIN)
     region = containment_region(parse_boundary_line(cycles[0][0].decode(), grid).polygon, standoff)
     west, south, east, _ = region.bounds
