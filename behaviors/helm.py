@@ -12,6 +12,7 @@ from typing import Union
 from moosdb_py.source import MissionFileError
 
 from .behavior import InfoBuffer, IvPBehavior, Post
+from .bhv_constant_depth import BHV_ConstantDepth
 from .bhv_constant_heading import BHV_ConstantHeading
 from .bhv_constant_speed import BHV_ConstantSpeed
 from .bhv_file import BehaviorSpec, BhvFile
@@ -26,7 +27,7 @@ Value = Union[float, str]
 HelmPost = tuple[str, Value, str]
 BEHAVIOR_TYPES: dict[str, type[IvPBehavior]] = {
     cls.type_name.lower(): cls
-    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading)
+    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth)
 }
 ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
                      "MOOS_MANUAL_OVERIDE", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",

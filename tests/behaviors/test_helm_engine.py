@@ -212,3 +212,18 @@ def test_spawned_behavior_from_template(domain, make_bhv):
     assert any(v == "IVPHELM_LIFE_EVENT" and "bname=cs_a" in val and "event=spawn" in val for _, v, val in log)
     assert [val for _, v, val in log if v == "DESIRED_SPEED"][-1] == 2.5
     assert [val for _, v, val in log if v == "DESIRED_HEADING"][-1] == 45
+
+
+def test_constant_depth_needs_and_uses_the_depth_domain(domain, make_bhv):
+    bhv = make_bhv("Behavior = BHV_ConstantDepth\n{\n depth = 8\n}\nBehavior = BHV_StationKeep\n{\n point = 0,0\n}\n")
+    with pytest.raises(MissionFileError, match="needs domain variable"):
+        Helm([bhv], domain)
+    from behaviors.domain import parse_domain_line
+    deep = domain.model_copy(update={"vars": domain.vars + [parse_domain_line("depth:0:100:101")]})
+    helm = Helm([bhv], deep, "uuv", active_start=True)
+    helm.startup(0.0)
+    for t in (0.0, 1.0, 2.0):
+        for var, value in dict(NAV_X=20.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=0.0, NAV_DEPTH=0.0).items():
+            helm.on_mail(var, value, t)
+        posts = dict((v, val) for v, val, _ in helm.iterate(t))
+    assert posts["DESIRED_DEPTH"] == 8 and posts["DESIRED_HEADING"] == 270

@@ -1,0 +1,12 @@
+"""BHV_ConstantDepth: hold one depth (a peak over the depth domain variable only)."""
+from __future__ import annotations
+
+from .bhv_constant_speed import OneVarPeak
+
+
+class BHV_ConstantDepth(OneVarPeak):
+    type_name = "BHV_ConstantDepth"
+    default_name = "const_depth"
+    decision_var = "depth"
+    value_param = "depth"
+    basewidth = 100.0
