@@ -81,7 +81,7 @@ def parse_output_summary(summary: str) -> set[tuple[str, str, str]]:
 def status_for(record: HostRecord, keyword: str, shore_warp: str) -> str:
     if record.keyword != keyword:
         return "keyword_mismatch"
-    if not _same_warp(record.timewarp, shore_warp):
+    if shore_warp and not _same_warp(record.timewarp, shore_warp):  # unknown yet is not a mismatch
         return f"timewarp ({shore_warp}!={record.timewarp})"
     return "ok"
 

@@ -233,3 +233,11 @@ def test_docs_say_what_the_apps_say():
     for app in (Share, NodeBroker, ShoreBroker):
         page = (docs / f"{app.default_name}.md").read_text()
         assert app.example_config.strip() in page and app.interface.strip() in page, app.default_name
+
+
+def test_ping_before_the_shore_knows_its_own_record_is_not_a_mismatch():
+    shore = ShoreBrokerState("shoreside", bridges=[("DEPLOY_ALL", "DEPLOY")])
+    posts = shore.on_ping(ABE_INFO + ",key=0", "abe", 0.0)
+    assert shore.nodes["abe"].status == "ok"
+    assert ("PSHARE_CMD", "cmd=output,src_name=DEPLOY_ALL,dest_name=DEPLOY,route=localhost:9201") in posts
+    assert not any(k.startswith("NODE_BROKER_ACK") for k, _ in shore.iterate(0.5))  # acks wait for the record
