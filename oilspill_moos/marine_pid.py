@@ -249,7 +249,7 @@ SUBSCRIPTIONS:
 PUBLICATIONS:
   DESIRED_RUDDER, DESIRED_THRUST (every iteration while it has control),
   DESIRED_ELEVATOR (with depth_control)
-  PID_HAS_CONTROL = true|false, PID_STALE = "Stale DesHdg:2.61 ..." when inputs are old
+  PID_HAS_CONTROL = true|false, PID_STALE = "Stale DesHdg:2.61 ..." when inputs become old
 """
 
     def on_startup(self) -> None:
@@ -304,13 +304,13 @@ PUBLICATIONS:
         base = ("DESIRED_HEADING", "DESIRED_SPEED", "NAV_HEADING", "NAV_SPEED")
         return base + DEPTH_INPUTS if self.params.depth_control else base
 
-    def _stale(self, now: float) -> str:
+    def _stale(self, now: float) -> list[tuple[str, float]]:
+        """(label, age) of each input older than its tardy threshold."""
         if self.params.simulation:
-            return ""
+            return []
         required = self._required()
-        ages = [f"{label}:{now - self.times[key]:.2f}" for key, label, limit in STALENESS_CHECKS
+        return [(label, now - self.times[key]) for key, label, limit in STALENESS_CHECKS
                 if key in required and now - self.times[key] > getattr(self.params, limit)]
-        return "Stale " + " ".join(ages) if ages else ""
 
     def iterate(self) -> None:
         if self.overridden:
@@ -321,9 +321,10 @@ PUBLICATIONS:
             return
         stale = self._stale(now)
         if stale:
-            if stale != self.stale_report:
-                self.notify("PID_STALE", stale)
-            self.stale_report = stale
+            labels = " ".join(label for label, _ in stale)
+            if labels != self.stale_report:  # once per change, not every iteration
+                self.notify("PID_STALE", "Stale " + " ".join(f"{label}:{age:.2f}" for label, age in stale))
+            self.stale_report = labels
             self._post(0.0, 0.0, 0.0)
             return
         self.stale_report = ""
