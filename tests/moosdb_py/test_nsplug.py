@@ -176,6 +176,12 @@ def test_errors_name_file_and_line(tmp_path, text, message):
         expand(tmp_path, text)
 
 
+def test_top_level_tag_like_nsplug_tag_switch(tmp_path):
+    path = tmp_path / "plugs.moos"
+    path.write_text("top = 0\n<tag><a>\nfrom_a = $(X)\n#ifdef X\n<tag><b>\nfrom_b = 1\n")
+    assert [line.text for line in preprocess(path, {"X": "7"}, tag="a")] == ["from_a = 7"]
+
+
 def test_a_tag_the_file_lacks_inserts_nothing(tmp_path):
     (tmp_path / "plugs.moos").write_text("<tag><a>\nx = 1\n")
     assert body(expand(tmp_path, "#include plugs.moos <b>\ny = 2\n")) == ["y = 2"]

@@ -130,3 +130,10 @@ def test_bad_command_lines(tmp_path, capsys):
 def test_example_and_interface(main, capsys):
     assert "ProcessConfig = " in in_process(main, capsys, "--example")[1]
     assert "SUBSCRIPTIONS" in in_process(main, capsys, "--interface")[1]
+
+
+def test_refreshing_table_until_duration(moosdb_server, capsys):
+    code, out, _ = in_process(xms_main, capsys, "--port", moosdb_server.port, "DB_UPTIME", "--mode=streaming",
+                              "--refresh=0.2", "--duration=0.6")
+    tables = [chunk for chunk in out.split("VarName") if chunk.strip()]
+    assert code == 0 and len(tables) >= 2 and "DB_UPTIME" in tables[-1]
