@@ -26,6 +26,8 @@ DEFAULT_MULTICAST_BASE_PORT = 24460
 MULTICAST_CHANNELS = 256
 KNOWN_OUTPUT_FIELDS = {"src_name", "dest_name", "route", "frequency", "cmd"}
 KNOWN_INPUT_FIELDS = {"route", "cmd"}
+CONFIG_KEYS = {"input", "output", "multicast_address", "multicast_base_port",
+               "apptick", "commstick", "maxapptick", "iteratemode", "sortmailbytime", "catchcommandmessages"}
 
 
 class ShareConfigError(ValueError):
@@ -397,6 +399,8 @@ PUBLICATIONS:
                     apply(entry.value, warnings)
                 except (ShareConfigError, OSError) as exc:
                     raise ValueError(f"{entry.source.file}:{entry.source.line}: {key}: {exc}") from None
+        warnings += [f"{e.source}: unhandled parameter {e.key!r}" for e in cfg.entries
+                     if e.key.lower() not in CONFIG_KEYS]
         for warning in warnings:
             log.warning("%s: %s", self.name, warning)
 

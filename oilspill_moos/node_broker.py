@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.app_config import config_bool, parse_pairs
+from oilspill_moos.app_config import config_bool, parse_pairs, unhandled_entries
 
 log = logging.getLogger(__name__)
 
@@ -255,8 +255,11 @@ class BrokerApp(MOOSApp):
 
     state: BrokerState
     handlers: dict[str, str] = {}  # variable -> name of the method that takes its mail
+    config_keys: frozenset[str] = frozenset()
 
     def read_common(self) -> None:
+        for warning in unhandled_entries(self.config, self.config_keys):
+            log.warning("%s: %s", self.name, warning)
         community = self.mission.community if self.mission else "#1"
         self.hostip = (self.config.get("hostip") or (self.mission.server_host if self.mission else "localhost")).strip()
         self.port_db = self.mission.server_port if self.mission else 9000
@@ -344,6 +347,7 @@ PUBLICATIONS:
   NODE_BROKER_PING_<i>  <host record>,time=<utc>,key=<i>  every 20 s (5 s while unanswered)
   NODE_PSHARE_VARS      comma list of the bridged aliases
 """
+    config_keys = frozenset({"try_shore_host", "bridge", "hostip", *NODE_AUTO_BRIDGES})
     handlers = {
         "PHI_HOST_INFO": "on_host_info",
         "PSHARE_INPUT_SUMMARY": "on_input_summary",

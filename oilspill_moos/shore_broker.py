@@ -294,6 +294,8 @@ PUBLICATIONS:
   UFSB_QBRIDGE_VARS        comma list of the qbridge variables
   UFSB_BRIDGE_VARS         comma list of every bridge source
 """
+    config_keys = frozenset({"qbridge", "bridge", "keyword", "try_vnode", "hostip",
+                             *SHORE_AUTO_QBRIDGES, *SHORE_AUTO_BRIDGES})
     handlers = {
         "NODE_BROKER_PING": "on_ping",
         "PHI_HOST_INFO": "on_host_info",
