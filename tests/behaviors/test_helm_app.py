@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from behaviors.helm_app import main
 from moosdb_py.client import MOOSClient
 
@@ -39,6 +41,36 @@ def test_help_example_interface(capsys):
                            ("--interface", "DESIRED_HEADING")):
         assert main([flag]) == 0
         assert fragment in capsys.readouterr().out
+
+
+def test_skewed_mail_is_ignored_but_fresh_registrations_pass(tmp_path):
+    from behaviors.helm_app import HelmIvP
+    from moosdb_py.message import MOOSMsg
+
+    app = HelmIvP(write_mission(tmp_path, 9000))   # t.bhv is found beside the mission file
+    app.on_startup()
+    now = app.moos_time()
+    app.registered_at = {"DEPLOY": now - 500}
+    app.on_new_mail([MOOSMsg.notification("DEPLOY", "true", time=now - 100, source="uPokeDB")])
+    assert app.helm.info.get("DEPLOY") == "false"          # stale by 100 s, registered long ago
+    app.on_new_mail([MOOSMsg.notification("DEPLOY", "true", time=now - 5, source="uPokeDB")])
+    assert app.helm.info.get("DEPLOY") == "true"
+    app.registered_at["RETURN"] = now
+    app.on_new_mail([MOOSMsg.notification("RETURN", "x", time=now - 1000, source="uPokeDB")])
+    assert app.helm.info.get("RETURN") == "x"              # arrived just after registering
+
+
+@pytest.mark.parametrize("block, message", [
+    ("behaviors = missing.bhv", "behaviors: file 'missing.bhv' not found"),
+    ("behaviors = t.bhv\n  behaviors = t.bhv", "a file is named twice"),
+    ("behaviors = t.bhv\n  domain = speed:0:4", "domain: domain 'speed:0:4'"),
+])
+def test_bad_helm_config_is_a_startup_error(tmp_path, block, message):
+    from behaviors.helm_app import HelmIvP
+    moos = write_mission(tmp_path, 9000)
+    moos.write_text(moos.read_text().replace("behaviors = t.bhv", block))
+    with pytest.raises(ValueError, match=message):
+        HelmIvP(moos).on_startup()
 
 
 def test_unknown_behavior_type_stops_startup(tmp_path, free_port):
