@@ -194,7 +194,8 @@ def options_from(args: argparse.Namespace) -> Options:
     return Options(mission, names, sources, show, history, host, port, warp)
 
 
-async def scope_main(args: argparse.Namespace, opts: Options, out=sys.stdout) -> int:
+async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
+    out = out or sys.stdout
     scope = Scope(opts.names, opts.sources, start=moos_time(opts.time_warp))
     changed = asyncio.Event()
     answered = asyncio.Event()   # the DB answered our ALL request, so it has answered the registrations
