@@ -3,15 +3,17 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from pathlib import Path
 
 import pytest
 
 from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
+from moosdb_py.mission import read_mission
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.marine_pid import MarinePID
-from oilspill_moos.node_reporter import NodeReporter
-from oilspill_moos.sim_marine import SimMarine
+from oilspill_moos.marine_pid import MarinePID, PIDParams
+from oilspill_moos.node_reporter import NodeReporter, ReporterParams
+from oilspill_moos.sim_marine import SimMarine, SimParams
 
 WARP = 10
 BLOCKS = {
@@ -186,3 +188,25 @@ def test_command_line_pages(capsys):
         assert "SUBSCRIPTIONS" in capsys.readouterr().out
         assert app.main(["--help"]) == 0
         assert app.default_name in capsys.readouterr().out
+
+
+CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
+CORPUS_MISSIONS = ["s1_alpha/alpha.moos", "minicourse_s2_alpha/alpha.moos", "station-keep-uuv/davis.moos",
+                   "minicourse_lab_henry_gilda_baseline/targ_henry.moos",
+                   "minicourse_lab_henry_gilda_baseline/targ_gilda.moos"]
+
+
+@pytest.mark.parametrize("name", CORPUS_MISSIONS)
+def test_real_mission_blocks_are_accepted(name):
+    """Every uSimMarine/pMarinePID/pNodeReporter block of the real MOOS-IvP missions reads cleanly."""
+    mission = read_mission(CORPUS / name)
+    readers = {"usimmarine": SimParams.from_config, "usimmarinev22": SimParams.from_config,
+               "pmarinepid": PIDParams.from_config, "pmarinepidv22": PIDParams.from_config,
+               "pnodereporter": lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input"))}
+    blocks = [b for b in mission.blocks if b.name.lower() in readers]
+    assert len(blocks) == 3
+    for block in blocks:
+        readers[block.name.lower()](block)
+    sim = next(b for b in blocks if b.name.lower().startswith("usimmarine"))
+    start = SimParams.from_config(sim).start
+    assert (start.heading, start.speed) == (180, 0) and SimParams.from_config(sim).prefix == "NAV"
