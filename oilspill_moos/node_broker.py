@@ -122,6 +122,24 @@ def parse_shore_route(text: str, where: str) -> str:
     return route
 
 
+def parse_output_summary(summary: str) -> set[tuple[str, str, str]]:
+    """PSHARE_OUTPUT_SUMMARY -> {(src, dest, host:port)}.
+
+    Format: `src->dest:host:port & dest2:host:port, src2->...` (a multicast route
+    carries a third `:multicast_N` part, kept in the route).
+    """
+    shares: set[tuple[str, str, str]] = set()
+    for entry in summary.split(","):
+        src, sep, routes = entry.strip().partition("->")
+        if not sep:
+            continue
+        for route in routes.split("&"):
+            dest, _, address = route.strip().partition(":")
+            if address:
+                shares.add((src, dest, address))
+    return shares
+
+
 def pshare_output_cmd(src: str, dest: str, route: str) -> str:
     return f"cmd=output,src_name={src},dest_name={dest},route={route}"
 
@@ -135,7 +153,7 @@ class ShoreContact:
     hostip: str = ""
     timewarp: str = ""
     last_ack: float | None = None
-    bridged: bool = False
+    bridged_at: float | None = None
 
 
 @dataclass
@@ -145,7 +163,11 @@ class BrokerState:
     community: str
     host_record: HostRecord | None = None
     host_record_from_phi: bool = False
+    shared: set[tuple[str, str, str]] | None = None  # what pShare says it forwards; None until it says
     warnings: list[str] = field(default_factory=list)
+
+    def on_output_summary(self, summary: str) -> None:
+        self.shared = parse_output_summary(summary)
 
     def on_host_info(self, text: str, community: str) -> None:
         """PHI_HOST_INFO from our own pHostInfo (one from elsewhere is not ours)."""
@@ -169,6 +191,7 @@ class NodeBrokerState(BrokerState):
     shores: list[ShoreContact] = field(default_factory=list)
     last_ping: float | None = None
     last_ack: float | None = None
+    last_repair: float | None = None
 
     def add_shore(self, route: str) -> bool:
         if any(s.route == route for s in self.shores):
@@ -198,9 +221,25 @@ class NodeBrokerState(BrokerState):
         shore.last_ack = now
         self.last_ack = now
         posts: list[Post] = [("NODE_PSHARE_VARS", ",".join(alias for _, alias in self.bridges))]
-        if not shore.bridged:
-            shore.bridged = True
-            posts += [("PSHARE_CMD", pshare_output_cmd(src, alias, shore.route)) for src, alias in self.bridges]
+        if shore.bridged_at is None:
+            shore.bridged_at = now
+            posts += self.bridge_requests(shore)
+        return posts
+
+    def bridge_requests(self, shore: ShoreContact) -> list[Post]:
+        return [("PSHARE_CMD", pshare_output_cmd(src, alias, shore.route)) for src, alias in self.bridges
+                if self.shared is None or (src, alias, shore.route) not in self.shared]
+
+    def repairs(self, now: float) -> list[Post]:
+        """Bridges our pShare no longer shows (it was restarted on its own) are asked for again."""
+        if self.shared is None or (self.last_repair is not None and now - self.last_repair < PING_PERIOD_UNANSWERED):
+            return []
+        posts: list[Post] = []
+        for shore in self.shores:
+            if shore.bridged_at is not None and now - shore.bridged_at >= PING_PERIOD_UNANSWERED:
+                posts += self.bridge_requests(shore)
+        if posts:
+            self.last_repair = now
         return posts
 
     def _shore_for(self, record: HostRecord) -> ShoreContact | None:
@@ -217,6 +256,7 @@ class NodeBrokerState(BrokerState):
                 ("PSHARE_CMD", pshare_output_cmd(f"{PING_VAR}_{i}", PING_VAR, shore.route))
                 for i, shore in enumerate(self.shores)
             ]
+        posts += self.repairs(now)
         if self.host_record is None or not self.host_record.pshare_iroutes:
             return posts
         answered = self.last_ack is not None and now - self.last_ack <= PING_PERIOD_UNANSWERED
@@ -298,6 +338,9 @@ class BrokerApp(MOOSApp):
     def on_input_summary(self, msg: MOOSMsg) -> None:
         self.state.on_input_summary(msg.string, self.hostip, self.port_db, self.time_warp)
 
+    def on_output_summary(self, msg: MOOSMsg) -> None:
+        self.state.on_output_summary(msg.string)
+
     def auto_switches(self, names) -> dict[str, bool]:
         return {name: config_bool(self.config, name, True) for name in names}
 
@@ -339,6 +382,7 @@ SUBSCRIPTIONS:
   NODE_BROKER_ACK       a shore's acknowledgement (host record,status=..,key=<i>,id=..);
                         acks from this vehicle's own community are ignored
   TRY_SHORE_HOST        pshare_route=<ip>:<port>: one more shore to ping
+  PSHARE_OUTPUT_SUMMARY what pShare forwards: bridges it lost (a pShare restart) are asked for again
 
 PUBLICATIONS:
   PSHARE_CMD            cmd=output,src_name=NODE_BROKER_PING_<i>,dest_name=NODE_BROKER_PING,route=<shore>
@@ -353,6 +397,7 @@ PUBLICATIONS:
         "PSHARE_INPUT_SUMMARY": "on_input_summary",
         "NODE_BROKER_ACK": "on_ack",
         "TRY_SHORE_HOST": "on_try_shore_host",
+        "PSHARE_OUTPUT_SUMMARY": "on_output_summary",
     }
 
     def on_startup(self) -> None:

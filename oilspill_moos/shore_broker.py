@@ -18,6 +18,7 @@ from oilspill_moos.node_broker import (
     HostRecord,
     Post,
     parse_bridge,
+    parse_output_summary,
     pairs_at,
     pshare_output_cmd,
     strip_blanks,
@@ -60,24 +61,6 @@ def parse_vnode_route(text: str, where: str) -> str:
     return f"{host}:{port or DEFAULT_VNODE_PORT}"
 
 
-def parse_output_summary(summary: str) -> set[tuple[str, str, str]]:
-    """PSHARE_OUTPUT_SUMMARY -> {(src, dest, host:port)}.
-
-    Format: `src->dest:host:port & dest2:host:port, src2->...` (a multicast route
-    carries a third `:multicast_N` part, kept in the route).
-    """
-    shares: set[tuple[str, str, str]] = set()
-    for entry in summary.split(","):
-        src, sep, routes = entry.strip().partition("->")
-        if not sep:
-            continue
-        for route in routes.split("&"):
-            dest, _, address = route.strip().partition(":")
-            if address:
-                shares.add((src, dest, address))
-    return shares
-
-
 def status_for(record: HostRecord, keyword: str, shore_warp: str) -> str:
     if record.keyword != keyword:
         return "keyword_mismatch"
@@ -114,7 +97,6 @@ class ShoreBrokerState(BrokerState):
     keyword: str = ""
     vnode_routes: list[str] = field(default_factory=list)
     nodes: dict[str, NodeContact] = field(default_factory=dict)
-    shared: set[tuple[str, str, str]] = field(default_factory=set)
     ack_id: int = 0
     bridge_interval: float = BRIDGE_INTERVAL_START
     last_bridge_round: float | None = None
@@ -156,18 +138,16 @@ class ShoreBrokerState(BrokerState):
         self.last_bridge_round = now
         return self.bridge_requests(node)
 
-    def on_output_summary(self, summary: str) -> None:
-        self.shared = parse_output_summary(summary)
-
     def bridge_requests(self, node: NodeContact) -> list[Post]:
         routes = [r for r in node.routes.split("&") if r]
         if not routes:
             self.warnings.append(f"node {node.vname} has no pshare_iroutes; nothing can be bridged to it")
             return []
+        shared = self.shared or set()
         return [
             ("PSHARE_CMD", pshare_output_cmd(src, alias, node.routes))
             for src, alias in self.node_bridges(node)
-            if not all((src, alias, route) in self.shared for route in routes)
+            if not all((src, alias, route) in shared for route in routes)
         ]
 
     def iterate(self, now: float) -> list[Post]:
@@ -314,9 +294,6 @@ PUBLICATIONS:
 
     def on_ping(self, msg: MOOSMsg) -> list[Post]:
         return self.state.on_ping(msg.string, msg.community, self.moos_time())
-
-    def on_output_summary(self, msg: MOOSMsg) -> None:
-        self.state.on_output_summary(msg.string)
 
     def status_fields(self) -> dict:
         return {"nodes": ":".join(self.state.nodes)}

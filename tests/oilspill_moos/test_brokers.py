@@ -241,3 +241,15 @@ def test_ping_before_the_shore_knows_its_own_record_is_not_a_mismatch():
     assert shore.nodes["abe"].status == "ok"
     assert ("PSHARE_CMD", "cmd=output,src_name=DEPLOY_ALL,dest_name=DEPLOY,route=localhost:9201") in posts
     assert not any(k.startswith("NODE_BROKER_ACK") for k, _ in shore.iterate(0.5))  # acks wait for the record
+
+
+def test_node_asks_again_for_bridges_its_pshare_lost():
+    node = make_node()
+    node.on_output_summary("NODE_BROKER_PING_0->NODE_BROKER_PING:localhost:9200")
+    node.on_ack(SHORE_INFO + ",status=ok,key=0,id=1", "shoreside", 10.0)
+    node.on_output_summary("NODE_REPORT_LOCAL->NODE_REPORT:localhost:9200")
+    assert [k for k, _ in node.iterate(16.0) if k == "PSHARE_CMD"] == []  # all there
+    node.on_output_summary("")  # pShare restarted and lost them
+    assert ("PSHARE_CMD", "cmd=output,src_name=NODE_REPORT_LOCAL,dest_name=NODE_REPORT,route=localhost:9200") \
+        in node.iterate(17.0)
+    assert [k for k, _ in node.iterate(18.0) if k == "PSHARE_CMD"] == []  # not more often than every 5 s
