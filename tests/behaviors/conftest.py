@@ -1,7 +1,10 @@
 """Shared fixtures for the helm tests: the mission corpus and a standard course/speed domain."""
+import sys
 from pathlib import Path
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # makes `helm_sim` importable in importlib mode
 
 from behaviors.domain import IvPDomain, parse_domain_line
 
