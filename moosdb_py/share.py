@@ -438,7 +438,10 @@ PUBLICATIONS:
         now = self.moos_time()
         for msg in mail:
             if msg.key == self.command_key:
-                self.on_command(msg)
+                if msg.time < self.start_time:  # as the C++ pShare: a command from before we started is stale
+                    log.info("%s: ignoring %s posted before start-up: %s", self.name, msg.key, msg.string)
+                else:
+                    self.on_command(msg)
                 continue
             for share in self.table.forward(msg, now):
                 self.send(msg, share)

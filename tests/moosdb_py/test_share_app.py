@@ -11,6 +11,7 @@ from helpers import async_wait_until
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.client import MOOSClient
+from moosdb_py.message import MOOSMsg
 from moosdb_py.share import MAX_DATAGRAM, Share
 
 
@@ -147,6 +148,21 @@ def test_port_in_use_is_a_clear_error(tmp_path):
         app = Share(write_mission(tmp_path / "busy.moos", "abe", 9000, [f"input = route = localhost:{port}"]))
         with pytest.raises(ValueError, match=f"cannot listen on localhost:{port}"):
             asyncio.run(_startup(app))
+
+
+def test_commands_from_before_start_up_are_stale(tmp_path):
+    app = Share(write_mission(tmp_path / "cmd.moos", "abe", 9000, []))
+    cmd = "cmd=output,src_name=A,route=localhost:9"
+
+    async def scenario():
+        app.on_startup()
+        app.on_new_mail([MOOSMsg.notification("PSHARE_CMD", cmd, time=app.start_time - 1.0)])
+        assert app.table.outputs == {}
+        app.on_new_mail([MOOSMsg.notification("PSHARE_CMD", cmd, time=app.start_time + 1.0)])
+        assert list(app.table.outputs) == ["A"]
+        app.close_sockets()
+
+    asyncio.run(scenario())
 
 
 async def _startup(app: Share):
