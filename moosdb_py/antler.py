@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import ctypes
+import importlib
 import os
 import re
 import shutil
@@ -93,7 +94,7 @@ class LaunchSpec:
 
 
 def _console_script(name: str) -> str | None:
-    if not any(ep.name == name for ep in metadata.entry_points(group="console_scripts", name=name)):
+    if not metadata.entry_points(group="console_scripts", name=name):
         return None
     script = Path(sys.executable).parent / name
     return str(script) if script.is_file() else None
@@ -102,7 +103,7 @@ def _console_script(name: str) -> str | None:
 def _load(target: str, check_class: bool = False):
     module, _, attr = target.partition(":")
     try:
-        obj = __import__(module, fromlist=["_"])
+        obj = importlib.import_module(module)
         for part in attr.split("."):
             obj = getattr(obj, part)
     except (ImportError, AttributeError):
@@ -113,7 +114,7 @@ def _load(target: str, check_class: bool = False):
 def python_target(name: str) -> str | None:
     """`module:attr` of a project app named `name` (the app group first, then console scripts)."""
     for group in (APP_GROUP, "console_scripts"):
-        found = [ep for ep in metadata.entry_points(group=group, name=name)]
+        found = list(metadata.entry_points(group=group, name=name))
         if group == "console_scripts":
             found = [ep for ep in found if ep.value.split(".")[0] in ("moosdb_py", "behaviors", "oilspill_moos")]
         if found:
