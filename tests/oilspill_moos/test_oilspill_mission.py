@@ -2,7 +2,8 @@
 
 One mission run is shared by the two tests (module fixture) to stay inside the time budget: the
 first follows a boundary through every phase and checks the vehicles' alogs, the second kills a
-vehicle during OIL-PATH and checks that the loop is re-shared between the other two.
+vehicle during OIL-PATH, checks that the loop is re-shared between the other two, then brings it
+back and checks that the loop is shared among three again.
 """
 import asyncio
 import math
@@ -35,7 +36,7 @@ def running(tmp_path_factory):
         wait_until(lambda: mission.dead() or observer.vehicles_seen() >= set(mission.fleet), timeout=TIMEOUT)
         assert not mission.dead(), f"communities stopped: {mission.dead()}"
         asyncio.run_coroutine_threadsafe(observer.deploy(mission.fleet, TIMEOUT, mission), loop).result(TIMEOUT + 5)
-        yield mission, observer
+        yield mission, observer, loop  # loop: where the observer's client runs, for coroutines from the tests
     finally:
         loop.call_soon_threadsafe(observer.client.close)
         thread.join(timeout=5)
@@ -51,7 +52,7 @@ def mode_changes(alog_path):
 
 
 def test_three_vehicles_go_through_every_phase_and_keep_looping(running):
-    mission, observer = running
+    mission, observer, _ = running
     assert push_lines([SPILL.encode()], port=mission.boundary_port) == [1]
     wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
     looping_since = observer.moos_now
@@ -74,8 +75,8 @@ def test_three_vehicles_go_through_every_phase_and_keep_looping(running):
         assert hits and max(hits) >= 1, f"{name} has not advanced along its loop"
 
 
-def test_vehicle_killed_in_oil_path_is_dropped_and_the_loop_reshared(running):
-    mission, observer = running
+def test_vehicle_killed_in_oil_path_is_dropped_reshared_and_rejoins(running):
+    mission, observer, loop = running
     if observer.phase_count.get(OIL_PATH, 0) == 0:
         assert push_lines([SPILL.encode()], port=mission.boundary_port)
         wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
@@ -83,12 +84,21 @@ def test_vehicle_killed_in_oil_path_is_dropped_and_the_loop_reshared(running):
     mission.stop_community("cal")
     wait_until(lambda: "cal" in observer.dropped, timeout=TIMEOUT)
     wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) > loops_before, timeout=TIMEOUT)
-    assert "planned=2" in observer.status or wait_until(lambda: "planned=2" in observer.status, timeout=10)
+    wait_until(lambda: "planned=2" in observer.status, timeout=TIMEOUT)
     starts = [observer.loops[name][0] for name in ("abe", "ben")]
     region = observer.regions[-1]
     perimeter = sum(math.dist(region[i], region[(i + 1) % len(region)]) for i in range(len(region)))
     # two vehicles on one loop: their starts are half a perimeter apart along it, so far apart in the plane
     assert math.dist(*starts) > perimeter / 6
+
+    # cal comes back (a fresh community from its base): pPathAssign re-shares the loop among three
+    loops_before = observer.phase_count[OIL_PATH]
+    mission.restart_community("cal")
+    wait_until(lambda: any(e["event"] == "rejoined" and e["what"] == "cal" for e in observer.events), timeout=TIMEOUT)
+    observer.modes.pop("cal", None)  # its old report still says OIL-PATH; the operator deploys it again
+    asyncio.run_coroutine_threadsafe(observer.deploy(["cal"], TIMEOUT, mission), loop).result(TIMEOUT)
+    wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) > loops_before and "planned=3" in observer.status,
+               timeout=TIMEOUT)
 
 
 # ---- the vehicle behaviour file on the helm engine alone (no processes) ----------------------
