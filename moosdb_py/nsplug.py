@@ -65,11 +65,10 @@ class Macros:
     def _resolve(self, match: re.Match) -> str | None:
         sigil, body = match.group(1), match.group(2)
         name, default, colon = body, None, False
-        if ":=" in body:
-            name, default = body.split(":=", 1)
-            colon = True
-        elif "=" in body:
-            name, default = body.split("=", 1)
+        eq = body.find("=")
+        if eq >= 0:
+            colon = eq > 0 and body[eq - 1] == ":"
+            name, default = body[: eq - 1 if colon else eq], body[eq + 1:]
         name = name.strip()
         if self.value(name) != "":
             value = self.value(name)

@@ -64,6 +64,10 @@ def test_default_forms(tmp_path, defines, plain, colon):
     assert body(expand(tmp_path, "a=[$(N=dflt)] b=[$(N:=dflt)]\n", defines)) == [f"a=[{plain}] b=[{colon}]"]
 
 
+def test_defaults_may_hold_equals_signs(tmp_path):
+    assert body(expand(tmp_path, "a = $(POS=x=1,y=2) $(P2:=h:=3)\n")) == ["a = x=1,y=2 h:=3"]
+
+
 def test_upper_case_form_upper_cases_defaults_too(tmp_path):
     assert body(expand(tmp_path, "File = LOG_%(VNAME)_%(X:=low)\n", {"VNAME": "abe"})) == ["File = LOG_ABE_LOW"]
 
