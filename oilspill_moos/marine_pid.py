@@ -184,6 +184,8 @@ PID_CONFIG_KEYS = frozenset(
     | {"maxrudder", "maxthrust", "maxpitch", "maxelevator", "speed_factor", "depth_control",
        "tardy_helm_threshold", "tardy_nav_threshold", "simulation", "ignore_nav_yaw", "pid_verbose",
        "active_start"})
+NUMERIC_INPUTS = ("DESIRED_HEADING", "DESIRED_SPEED", "DESIRED_DEPTH", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH",
+                  "NAV_PITCH", "NAV_YAW")
 DEPTH_INPUTS = ("DESIRED_DEPTH", "NAV_DEPTH")
 # Mail stamped further than this from our clock is from a confused process and is dropped.
 MAX_MAIL_SKEW = 360.0
@@ -263,9 +265,7 @@ PUBLICATIONS:
         self.stale_report = ""
 
     def on_connect(self) -> None:
-        for key in ("DESIRED_HEADING", "DESIRED_SPEED", "DESIRED_DEPTH", "NAV_HEADING", "NAV_SPEED",
-                    "NAV_DEPTH", "NAV_PITCH", "NAV_YAW", "MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE",
-                    "SPEED_FACTOR"):
+        for key in (*NUMERIC_INPUTS, "MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE", "SPEED_FACTOR"):
             self.register(key)
 
     def on_new_mail(self, mail) -> None:
@@ -278,7 +278,12 @@ PUBLICATIONS:
                 self._set_override(str(msg.value).strip().lower())
             elif key == "SPEED_FACTOR" and msg.is_double():
                 self.engine.speed_factor = msg.double
-            elif msg.is_double():
+            elif key not in NUMERIC_INPUTS:
+                continue  # e.g. <NAME>_CMD
+            elif not msg.is_double():
+                log.warning("%s: %s from %s is not a number (%r): ignored", self.name, key, msg.source or "?",
+                            msg.value)
+            else:
                 value = msg.double
                 if key == "NAV_YAW":
                     if self.params.ignore_nav_yaw:

@@ -369,7 +369,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
             try:
                 self._handle(msg)
             except ValueError as err:
-                self.notify("USM_WARNING", f"{msg.key} from {msg.source or '?'}: {err}")
+                log.warning("%s: %s from %s ignored: %s", self.name, msg.key, msg.source or "?", err)
 
     def _handle(self, msg) -> None:
         key, model = msg.key, self.model

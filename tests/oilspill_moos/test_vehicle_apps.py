@@ -75,7 +75,7 @@ def value(watcher, key, default=None):
     return default if msg is None else msg.value
 
 
-def test_sim_posts_nav_every_second_iteration_and_follows_thrust(moosdb_server, tmp_path):
+def test_sim_posts_nav_every_second_iteration_and_follows_thrust(moosdb_server, tmp_path, caplog):
     async def scenario():
         sim = SimMarine(write_mission(tmp_path, moosdb_server.port), "uSimMarineV22")
         keys = ["NAV_X", "NAV_Y", "NAV_LAT", "NAV_LONG", "NAV_SPEED", "NAV_HEADING", "NAV_DEPTH",
@@ -85,6 +85,8 @@ def test_sim_posts_nav_every_second_iteration_and_follows_thrust(moosdb_server, 
             assert latest(w, "NAV_Y").double == pytest.approx(-20) and latest(w, "NAV_HEADING").double == 180
             nav_posts = sum(m.key == "NAV_X" for m in w.inbox)
             assert abs(nav_posts - sim.iterations / 2) <= 2
+            w.notify("ROTATE_SPEED", "fast")  # bad mail: named in a warning, nothing else changes
+            await async_wait_until(lambda: "ROTATE_SPEED from uScript ignored" in caplog.text, 5)
             w.notify("DESIRED_THRUST", 40.0)
             await async_wait_until(lambda: latest(w, "NAV_SPEED").double >= 1.98, 10)
             assert latest(w, "NAV_SPEED").source == "uSimMarineV22"
@@ -100,7 +102,7 @@ def test_sim_posts_nav_every_second_iteration_and_follows_thrust(moosdb_server, 
     asyncio.run(scenario())
 
 
-def test_pid_takes_control_only_when_unoverridden_and_goes_stale(moosdb_server, tmp_path):
+def test_pid_takes_control_only_when_unoverridden_and_goes_stale(moosdb_server, tmp_path, caplog):
     async def scenario():
         pid = MarinePID(write_mission(tmp_path, moosdb_server.port), "pMarinePIDV22")
         keys = ["DESIRED_RUDDER", "DESIRED_THRUST", "PID_HAS_CONTROL", "PID_STALE"]
@@ -115,6 +117,8 @@ def test_pid_takes_control_only_when_unoverridden_and_goes_stale(moosdb_server, 
             w.notify("MOOS_MANUAL_OVERRIDE", "false")
             await async_wait_until(lambda: latest(w, "PID_HAS_CONTROL"), 5)
             assert latest(w, "PID_HAS_CONTROL").string == "true"
+            w.notify("DESIRED_DEPTH", "deep")
+            await async_wait_until(lambda: "DESIRED_DEPTH from uScript is not a number" in caplog.text, 5)
             feed()  # control resets the inputs: they must arrive again
             await async_wait_until(lambda: value(w, "DESIRED_THRUST") == 40.0, 5)
             assert latest(w, "DESIRED_RUDDER").double > 0  # 350 -> 10: turn right
