@@ -218,3 +218,22 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
     assert f"ServerPort   = {port}" in (folder / f"{folder.name}._moos").read_text()
     # the helm asks the logger (PLOGGER_CMD = COPY_FILE_REQUEST) for a copy of its behaviour file
     assert (folder / f"{folder.name}._bhv").read_text() == (HELLO / "hello.bhv").read_text()
+
+
+@pytest.mark.parametrize("one_process", [False, True], ids=["processes", "one-process"])
+def test_an_app_with_a_bad_config_is_reported_with_its_error(tmp_path, free_port, one_process):
+    path = tmp_path / "bad.moos"
+    path.write_text(f"ServerPort = {free_port()}\nProcessConfig = ANTLER\n{{\n  MSBetweenLaunches = 10\n"
+                    "  Run = MOOSDB\n  Run = pLogger\n}\nProcessConfig = pLogger\n{\n  Log = NAV_X @ soon\n}\n")
+    proc = pantler(path, *(["--one-process"] if one_process else []), cwd=tmp_path)
+    output = Output(proc)
+    try:
+        reason = f"{path}:10: Log = 'NAV_X @ soon': period 'soon' is not a number"
+        report = "pLogger (in-process) failed: " if one_process else "exited with code 1; last output:"
+        wait_until(lambda: report in output.text and reason in output.text, timeout=20)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1
