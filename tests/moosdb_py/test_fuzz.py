@@ -22,7 +22,7 @@ def _hello(name: str, asynchronous: bool = True) -> bytes:
         [MOOSMsg("i", "S", "asynchronous" if asynchronous else "", string=name, time=time.time())])
 
 
-async def _with_pair(db: MOOSDB, trouble, n: int = 30):
+async def _with_pair(db: MOOSDB, trouble, n: int = 30) -> list[float]:
     """`sub` subscribes to X while `pub` writes 0..n-1 and `trouble()` misbehaves; return sub's values."""
     sub = MOOSClient("good_sub", port=db.port)
     pub = MOOSClient("good_pub", port=db.port)
@@ -85,101 +85,82 @@ def test_garbage_from_one_client_disturbs_nobody(junk, handshake, caplog):
     asyncio.run(asyncio.wait_for(scenario(), 15))
 
 
-def test_malformed_packet_drops_the_client_with_the_reason(caplog):
+def _survives(caplog, trouble, *logged: str, **options) -> None:
+    """Run `trouble(db)` beside a good pair; their mail must be complete and `logged` texts in the log."""
     async def scenario():
-        db = await _start_db()
-
-        async def trouble():
-            reader, writer = await asyncio.open_connection(db.host, db.port)
-            writer.write(_hello("liar"))
-            await async_wait_until(lambda: "liar" in db.clients)
-            packet = codec.encode_packet([MOOSMsg.notification("Y", 1.0, time=1.0, source="liar")])
-            writer.write(packet[:9] + struct.pack("<i", 999) + packet[13:])    # message length disagrees
-            await async_wait_until(lambda: "liar" not in db.clients)
-            await reader.read()                    # returns: the DB hung up on it
-
+        db = await _start_db(**options)
         with caplog.at_level(logging.INFO, logger="moosdb"):
-            assert await _with_pair(db, trouble) == [float(i) for i in range(30)]
-        assert any("dropping client 'liar'" in r.message and "claims length 999" in r.message for r in caplog.records)
+            values = await _with_pair(db, lambda: trouble(db))
         db.close()
+        assert [v for v in values if v >= 0] == [float(i) for i in range(30)]
+        text = "\n".join(r.message for r in caplog.records)
+        for part in logged:
+            assert part in text
     asyncio.run(asyncio.wait_for(scenario(), 15))
+
+
+def test_malformed_packet_drops_the_client_with_the_reason(caplog):
+    async def trouble(db):
+        reader, writer = await asyncio.open_connection(db.host, db.port)
+        writer.write(_hello("liar"))
+        await async_wait_until(lambda: "liar" in db.clients)
+        packet = codec.encode_packet([MOOSMsg.notification("Y", 1.0, time=1.0, source="liar")])
+        writer.write(packet[:9] + struct.pack("<i", 999) + packet[13:])    # message length disagrees
+        await async_wait_until(lambda: "liar" not in db.clients)
+        await reader.read()                    # returns: the DB hung up on it
+    _survives(caplog, trouble, "dropping client 'liar'", "claims length 999")
 
 
 def test_oversized_packet_and_garbage_before_handshake(caplog):
-    async def scenario():
-        db = await _start_db(max_packet=10_000)
-
-        async def trouble():
-            _, big = await asyncio.open_connection(db.host, db.port)
-            big.write(_hello("big") + struct.pack("<i", 50_000))
-            _, noisy = await asyncio.open_connection(db.host, db.port)
-            noisy.write(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n" + b"\0" * 8)
-            await async_wait_until(lambda: len(db.connections) == 2)   # only the two good clients left
-            big.close()
-            noisy.close()
-
-        with caplog.at_level(logging.INFO, logger="moosdb"):
-            assert await _with_pair(db, trouble) == [float(i) for i in range(30)]
-        text = "\n".join(r.message for r in caplog.records)
-        assert "packet length 50000 outside [9, 10000]" in text and "wrong protocol string b'GET / HTTP/1.1" in text
-        db.close()
-    asyncio.run(asyncio.wait_for(scenario(), 15))
+    async def trouble(db):
+        _, big = await asyncio.open_connection(db.host, db.port)
+        big.write(_hello("big") + struct.pack("<i", 50_000))
+        _, noisy = await asyncio.open_connection(db.host, db.port)
+        noisy.write(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n" + b"\0" * 8)
+        await async_wait_until(lambda: len(db.connections) == 2)   # only the two good clients left
+        big.close()
+        noisy.close()
+    _survives(caplog, trouble, "dropping client 'big'", "packet length 50000 outside [9, 10000]",
+              "wrong protocol string b'GET / HTTP/1.1", max_packet=10_000)
 
 
 def test_client_that_stops_reading_is_dropped(caplog):
     """A subscriber that never reads: its backlog passes max_queue and it goes; the others carry on."""
-    async def scenario():
-        db = await _start_db(max_queue=200_000)
-
-        async def trouble():
-            stuck = socket.socket()
-            stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-            stuck.connect((db.host, db.port))
-            stuck.setblocking(False)
-            reg = MOOSMsg("R", "D", "BIG", 0.0, source="stuck", time=time.time())
-            await asyncio.get_running_loop().sock_sendall(stuck, _hello("stuck") + codec.encode_packet([reg]))
-            await async_wait_until(lambda: "stuck" in db.clients and db.vars.get("BIG"))
-            flooder = MOOSClient("flooder", port=db.port)
-            task = asyncio.create_task(flooder.run())
-            await flooder.wait_connected(5)
-            payload = b"\xab" * 100_000
-            for _ in range(100):                   # 10 MB the stuck client never reads
-                flooder.notify("BIG", payload)
-                await asyncio.sleep(0)
-            await async_wait_until(lambda: "stuck" not in db.clients, 5)
-            flooder.close()
-            await task
-            stuck.close()
-
-        with caplog.at_level(logging.INFO, logger="moosdb"):
-            assert await _with_pair(db, trouble) == [float(i) for i in range(30)]
-        assert any("dropping client 'stuck'" in r.message and "not reading" in r.message for r in caplog.records)
-        db.close()
-    asyncio.run(asyncio.wait_for(scenario(), 15))
+    async def trouble(db):
+        stuck = socket.socket()
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stuck.connect((db.host, db.port))
+        stuck.setblocking(False)
+        reg = MOOSMsg("R", "D", "BIG", 0.0, source="stuck", time=time.time())
+        await asyncio.get_running_loop().sock_sendall(stuck, _hello("stuck") + codec.encode_packet([reg]))
+        await async_wait_until(lambda: "stuck" in db.clients and db.vars.get("BIG"))
+        flooder = MOOSClient("flooder", port=db.port)
+        task = asyncio.create_task(flooder.run())
+        await flooder.wait_connected(5)
+        payload = b"\xab" * 100_000
+        for _ in range(100):                   # 10 MB the stuck client never reads
+            flooder.notify("BIG", payload)
+            await asyncio.sleep(0)
+        await async_wait_until(lambda: "stuck" not in db.clients, 5)
+        flooder.close()
+        await task
+        stuck.close()
+    _survives(caplog, trouble, "dropping client 'stuck'", "(client not reading)", max_queue=200_000)
 
 
 def test_synchronous_client_that_stops_polling_is_dropped(caplog):
-    async def scenario():
-        db = await _start_db(max_queue=50_000)
-
-        async def trouble():
-            reader, writer = await asyncio.open_connection(db.host, db.port)
-            reg = MOOSMsg("R", "D", "X", 0.0, source="lazy", time=time.time())
-            writer.write(_hello("lazy", asynchronous=False) + codec.encode_packet([reg]))
-            await async_wait_until(lambda: "lazy" in db.clients and db.clients["lazy"].subscribed)
-            writer2 = MOOSClient("spammer", port=db.port)
-            task = asyncio.create_task(writer2.run())
-            await writer2.wait_connected(5)
-            for i in range(2000):
-                writer2.notify("X", float(-i - 1))     # held for `lazy`, which never polls
-            await async_wait_until(lambda: "lazy" not in db.clients, 5)
-            writer2.close()
-            await task
-            writer.close()
-
-        with caplog.at_level(logging.INFO, logger="moosdb"):
-            values = await _with_pair(db, trouble, n=30)
-        assert [v for v in values if v >= 0] == [float(i) for i in range(30)]
-        assert any("dropping client 'lazy'" in r.message and "not polling" in r.message for r in caplog.records)
-        db.close()
-    asyncio.run(asyncio.wait_for(scenario(), 15))
+    async def trouble(db):
+        reader, writer = await asyncio.open_connection(db.host, db.port)
+        reg = MOOSMsg("R", "D", "X", 0.0, source="lazy", time=time.time())
+        writer.write(_hello("lazy", asynchronous=False) + codec.encode_packet([reg]))
+        await async_wait_until(lambda: "lazy" in db.clients and db.clients["lazy"].subscribed)
+        spammer = MOOSClient("spammer", port=db.port)
+        task = asyncio.create_task(spammer.run())
+        await spammer.wait_connected(5)
+        for i in range(2000):
+            spammer.notify("X", float(-i - 1))     # held for `lazy`, which never polls
+        await async_wait_until(lambda: "lazy" not in db.clients, 5)
+        spammer.close()
+        await task
+        writer.close()
+    _survives(caplog, trouble, "dropping client 'lazy'", "(synchronous client not polling)", max_queue=50_000)
