@@ -221,7 +221,7 @@ class Coordinator:
         """VEHICLE_COORDINATES="vname=abe,x=..,y=..,utc=..": counts once the current cycle has begun."""
         name, x, y = self._position_of(text, community)
         self._seen(name, x, y, now)
-        if self.phase == STATION_KEEPING and not self.vehicles[name].dropped:
+        if self.phase == STATION_KEEPING:
             self.reported[name] = (x, y)
             self._maybe_plan(now)
 

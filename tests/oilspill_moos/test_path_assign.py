@@ -313,3 +313,44 @@ def test_arrival_timeout_starts_the_loops_without_the_late_vehicle_blocking():
     c.tick(102.0)
     assert c.phase == OIL_PATH and "arrival time-out: cal" in posts(c, "OILSPILL_WARNING")[0]
     assert posts(c, "OIL_PATH_UPDATES_CAL")
+
+
+events = st.lists(st.tuples(st.sampled_from(["coords", "report", "reached", "tick", "boundary"]),
+                            st.sampled_from(["abe", "ben", "cal", "deb"]),
+                            st.floats(-600, 600, allow_nan=False), st.floats(0, 15)), max_size=40)
+
+
+@settings(max_examples=40, deadline=None)
+@given(events)
+def test_phase_machine_invariants_under_any_mail_order(sequence):
+    c = Coordinator(Settings(fleet=("abe", "ben"), standoff=20, coordinate_timeout=20, node_timeout=30,
+                             arrival_timeout=200, min_replan_interval=0))
+    now = 0.0
+    c.offer_boundary(Boundary(tuple(SQUARE)), now)
+    for kind, name, coordinate, step in sequence:
+        now += step
+        phase_before, since = c.phase, c.phase_started
+        if kind == "coords":
+            c.on_coordinates(f"vname={name},x={coordinate},y={-coordinate}", now)
+        elif kind == "report":
+            c.on_node_report(report(name, coordinate, 0), now)
+        elif kind == "reached":
+            c.on_reached(name, now)
+        elif kind == "boundary":
+            c.offer_boundary(Boundary(tuple((x + coordinate, y) for x, y in SQUARE)), now)
+        c.tick(now)
+        if c.phase in (STARTING_POSITION, OIL_PATH):
+            dropped = [v for v in c.plan.starts if c.vehicles[v].dropped]
+            alive = [v for v in c.vehicles.values() if not v.dropped and v.x is not None]
+            assert not dropped or not alive, f"{dropped} still planned while {alive} could take over"
+        if phase_before == STARTING_POSITION and c.phase == OIL_PATH:
+            assert set(c.plan.starts) <= c.arrived or now - since > 200
+    cycle_phases = [v for k, v in c.outbox if k == "OILSPILL_PHASE"]
+    for before, after in zip(cycle_phases, cycle_phases[1:]):
+        assert (before, after) in {(STATION_KEEPING, STARTING_POSITION), (STARTING_POSITION, OIL_PATH),
+                                   (STARTING_POSITION, STARTING_POSITION), (OIL_PATH, STARTING_POSITION),
+                                   (STARTING_POSITION, STATION_KEEPING), (OIL_PATH, STATION_KEEPING),
+                                   (STATION_KEEPING, STATION_KEEPING)}
+    for key, value in c.outbox:
+        if key.startswith("OIL_PATH_UPDATES_"):
+            assert value.startswith("points=") and value.endswith("#repeat=forever")
