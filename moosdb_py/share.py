@@ -11,6 +11,7 @@ import asyncio
 import contextlib
 import logging
 import socket
+import sys
 from dataclasses import dataclass, field, replace
 
 from moosdb_py.app import MOOSApp
@@ -332,7 +333,8 @@ class Share(MOOSApp):
     stamp; only its name changes (src_name -> dest_name).  A received datagram whose variable this
     pShare itself forwards is dropped (that stops echo loops); a malformed one is logged and dropped.
 
-    Usage: pShare mission.moos [alias]   (routes from its ProcessConfig block and from PSHARE_CMD)
+    Usage: pShare mission.moos [alias] [-i=host:port,...] [-o=X->Y:host:port@Hz,...]
+    Routes come from its ProcessConfig block, the -i=/-o= switches and PSHARE_CMD.
     One datagram per message, laid out as a serialised CMOOSMsg, as the C++ pShare sends it.
     """
 
@@ -371,6 +373,18 @@ PUBLICATIONS:
   every variable received from another community, as sent (source, community, time kept)
 """
 
+    command_line: tuple[str, ...] = ()  # -o=... / -i=... switches given to `main`
+
+    @classmethod
+    def main(cls, argv: list[str] | None = None) -> int:
+        """The MOOS command line, plus pShare's `-o=X->Y:host:port,...` and `-i=host:port,...` routes."""
+        argv = sys.argv[1:] if argv is None else list(argv)
+        switches = tuple(a for a in argv if a.partition("=")[0] in ("-o", "-i", "--output", "--input"))
+        if not switches:
+            return super().main(argv)
+        with_routes = type(cls.__name__, (cls,), {"command_line": switches, "__doc__": cls.__doc__})
+        return super(Share, with_routes).main([a for a in argv if a not in switches])
+
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         # Mail is forwarded as it arrives, not at the next AppTick (the C++ pShare's
@@ -399,6 +413,14 @@ PUBLICATIONS:
                     apply(entry.value, warnings)
                 except (ShareConfigError, OSError) as exc:
                     raise ValueError(f"{entry.source.file}:{entry.source.line}: {key}: {exc}") from None
+        for switch in self.command_line:
+            flag, _, routes = switch.partition("=")
+            apply = self.apply_output if flag in ("-o", "--output") else self.apply_input
+            for item in filter(None, routes.split(",")):
+                try:
+                    apply(item if flag in ("-o", "--output") else f"route={item}", warnings)
+                except (ShareConfigError, OSError) as exc:
+                    raise ValueError(f"command line {flag}: {exc}") from None
         warnings += [f"{e.source}: unhandled parameter {e.key!r}" for e in cfg.entries
                      if e.key.lower() not in CONFIG_KEYS]
         for warning in warnings:

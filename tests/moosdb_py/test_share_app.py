@@ -4,6 +4,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import socket
+import subprocess
+import sys
 
 import pytest
 from conftest import start_moosdb
@@ -170,3 +172,26 @@ async def _startup(app: Share):
         app.on_startup()
     finally:
         app.close_sockets()
+
+
+def test_routes_from_the_command_line(moosdb_server):
+    udp_in, udp_out = free_udp_port(), free_udp_port()
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from moosdb_py.share import main; sys.exit(main())",
+                             f"--moos_port={moosdb_server.port}", f"-i=localhost:{udp_in}",
+                             f"-o=X->Y:localhost:{udp_out}@2,Z->localhost:{udp_out}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    watcher = Mailbox("cli_watch", moosdb_server.port, ["PSHARE_INPUT_SUMMARY", "PSHARE_OUTPUT_SUMMARY"])
+
+    async def scenario():
+        task = asyncio.create_task(watcher.client.run())
+        await async_wait_until(lambda: watcher.values("PSHARE_OUTPUT_SUMMARY"), 10)
+        watcher.client.close()
+        await task
+
+    try:
+        asyncio.run(scenario())
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+    assert watcher.values("PSHARE_INPUT_SUMMARY")[-1] == f"localhost:{udp_in}"
+    assert watcher.values("PSHARE_OUTPUT_SUMMARY")[-1] == f"X->Y:localhost:{udp_out}, Z->Z:localhost:{udp_out}"
