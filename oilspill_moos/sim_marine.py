@@ -234,10 +234,6 @@ class MarineModel:
     def set_elevator(self, desired: float) -> None:
         self.elevator = max(-100.0, min(100.0, desired))
 
-    def set_drift_vector(self, ang: float, mag: float) -> None:
-        rad = math.radians(ang)
-        self.drift_x, self.drift_y = mag * math.sin(rad), mag * math.cos(rad)
-
     @property
     def drift_angle(self) -> float:
         return angle360(math.degrees(math.atan2(self.drift_x, self.drift_y)))

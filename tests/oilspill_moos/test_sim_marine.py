@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oilspill_moos.sim_marine import MarineModel, NavState, SimParams, ThrustMap
+from oilspill_moos.sim_marine import MarineModel, NavState, SimParams, ThrustMap, parse_drift_vector
 
 ALPHA = {  # the s1_alpha uSimMarineV22 block, lower-case keys as ProcessConfig.get sees them
     "start_pos": "x=0, y=-20, heading=180, speed=0",
@@ -137,7 +137,7 @@ def test_drift_moves_a_stopped_vehicle_and_shows_over_ground():
     assert (model.state.x, model.state.y) == pytest.approx((1.0, -20 + 0.2))
     assert res.speed_over_ground == pytest.approx(math.hypot(0.5, 0.1))
     assert res.heading_over_ground == pytest.approx(math.degrees(math.atan2(0.5, 0.1)))
-    model.set_drift_vector(180, 1.0)
+    model.drift_x, model.drift_y = parse_drift_vector("180, 1.0", "DRIFT_VECTOR")
     assert model.drift_angle == pytest.approx(180) and model.drift_magnitude == pytest.approx(1.0)
 
 

@@ -214,3 +214,16 @@ def test_real_mission_blocks_are_accepted(name):
     sim = next(b for b in blocks if b.name.lower().startswith("usimmarine"))
     start = SimParams.from_config(sim).start
     assert (start.heading, start.speed) == (180, 0) and SimParams.from_config(sim).prefix == "NAV"
+
+
+def test_unhandled_parameters_are_warned_with_their_line(tmp_path, free_port, caplog):
+    blocks = {"uSimMarine": "\n  AppTick = 10\n  FORCE_X = 0.3\n  prefix = NAV",
+              "pMarinePID": "\n  sim_instability = 20\n  depth_control = false",
+              "pNodeReporter": "\n  rider = BATTERY\n  vessel_type = UUV"}
+    mission = write_mission(tmp_path, free_port(), blocks)
+    for app in (SimMarine(mission), MarinePID(mission), NodeReporter(mission)):
+        app.on_startup()
+    assert "vehicle.moos:11: unhandled parameter 'FORCE_X'" in caplog.text
+    assert "vehicle.moos:17: unhandled parameter 'sim_instability'" in caplog.text
+    assert "vehicle.moos:23: unhandled parameter 'rider'" in caplog.text
+    assert "prefix" not in caplog.text and "AppTick" not in caplog.text and "vessel_type" not in caplog.text
