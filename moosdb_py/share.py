@@ -398,7 +398,6 @@ PUBLICATIONS:
             raise ValueError(f"multicast_base_port: '{base_port}' is not a port number")
         self.table = ShareTable((cfg.get("multicast_address") or DEFAULT_MULTICAST_ADDRESS).strip(),
                                 int(base_port))
-        self.community = self.mission.community if self.mission else ""
         self.counts = dict.fromkeys(("sent", "received", "echo", "malformed", "oversize", "send_errors"), 0)
         self.last_summary: float | None = None
         self.addresses: dict[Route, tuple] = {}
@@ -483,7 +482,7 @@ PUBLICATIONS:
 
     def send(self, msg: MOOSMsg, share: Output) -> None:
         try:
-            datagram = encode_datagram(msg, share.dest, msg.community or self.community)
+            datagram = encode_datagram(msg, share.dest, msg.community or self.client.community)
         except DatagramTooLarge as exc:
             self.counts["oversize"] += 1
             log.error("%s: %s", self.name, exc)
