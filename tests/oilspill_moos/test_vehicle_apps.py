@@ -119,8 +119,8 @@ def test_pid_takes_control_only_when_unoverridden_and_goes_stale(moosdb_server, 
             assert latest(w, "PID_HAS_CONTROL").string == "true"
             w.notify("DESIRED_DEPTH", "deep")
             await async_wait_until(lambda: "DESIRED_DEPTH from uScript is not a number" in caplog.text, 5)
-            feed()  # control resets the inputs: they must arrive again
-            await async_wait_until(lambda: value(w, "DESIRED_THRUST") == 40.0, 5)
+            # control resets the inputs: they must arrive again (and keep coming, or they go stale)
+            await async_wait_until(lambda: feed() or value(w, "DESIRED_THRUST") == 40.0, 5, interval=0.05)
             assert latest(w, "DESIRED_RUDDER").double > 0  # 350 -> 10: turn right
             # stop feeding: after 2 warped seconds the inputs are stale and the outputs drop to zero
             await async_wait_until(lambda: latest(w, "PID_STALE"), 5)
