@@ -224,7 +224,7 @@ class BHV_Waypoint(IvPBehavior):
             self.cpa = float(distance(osx, osy, nx, ny))
             return "advanced"
         self.cycles, self.ix, self.cpa = self.cycles + 1, 0, None
-        if self.perpetual:
+        if self.perpetual or self.endless:
             self.repeats_sofar += 1
             if self.endless or self.repeats_sofar <= self.repeat:
                 return "cycled"

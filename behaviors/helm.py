@@ -16,6 +16,7 @@ from .bhv_constant_depth import BHV_ConstantDepth
 from .bhv_constant_heading import BHV_ConstantHeading
 from .bhv_constant_speed import BHV_ConstantSpeed
 from .bhv_file import BehaviorSpec, BhvFile
+from .bhv_loiter import BHV_Loiter
 from .bhv_station_keep import BHV_StationKeep
 from .bhv_waypoint import BHV_Waypoint
 from .domain import IvPDomain
@@ -27,7 +28,8 @@ Value = Union[float, str]
 HelmPost = tuple[str, Value, str]
 BEHAVIOR_TYPES: dict[str, type[IvPBehavior]] = {
     cls.type_name.lower(): cls
-    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth)
+    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth,
+                BHV_Loiter)
 }
 ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
                      "MOOS_MANUAL_OVERIDE", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",

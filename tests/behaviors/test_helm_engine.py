@@ -133,8 +133,8 @@ def test_station_keep_settles_inside_outer_radius_under_current(domain):
 
 
 def test_unknown_behavior_type_is_a_startup_error(domain):
-    with pytest.raises(MissionFileError, match=r"t.bhv:1: unknown behavior type 'BHV_Loiter'"):
-        Helm([bhv_of("Behavior = BHV_Loiter\n{\n speed = 1\n}\n")], domain)
+    with pytest.raises(MissionFileError, match=r"t.bhv:1: unknown behavior type 'BHV_AvdColregsV22'"):
+        Helm([bhv_of("Behavior = BHV_AvdColregsV22\n{\n pwt = 1\n}\n")], domain)
     with pytest.raises(MissionFileError, match=r"t.bhv:3: .*unknown parameter 'spede'"):
         Helm([bhv_of("Behavior = BHV_Waypoint\n{\n spede = 1\n}\n")], domain)
 
@@ -193,3 +193,19 @@ def test_constant_depth_needs_and_uses_the_depth_domain(domain, make_bhv):
             helm.on_mail(var, value, t)
         posts = dict((v, val) for v, val, _ in helm.iterate(t))
     assert posts["DESIRED_DEPTH"] == 8 and posts["DESIRED_HEADING"] == 270
+
+
+def test_loiter_acquires_then_circles_the_lab_polygon(corpus, domain):
+    helm = Helm([read_bhv(corpus / "minicourse_lab_henry_gilda_baseline" / "targ_henry.bhv")], domain, "henry",
+                active_start=True)
+    helm.startup(0.0)
+    boat, log = Boat(80, 0, 180), []
+    run(helm, boat, 400, log=log)                       # initialize DEPLOY = true, LOITER = true
+    assert [val for _, v, val in log if v == "MODE"] == ["ACTIVE:LOITERING"]
+    assert [val for _, v, val in log if v == "LOITER_ACQUIRE"][:2] == [1.0, 0.0]
+    assert max(val for _, v, val in log if v == "LOITER_CYCLES_A") >= 2
+    loiter = helm.behaviors[0]
+    centre = loiter.points.mean(axis=0)
+    late = [math.hypot(x - centre[0], y - centre[1]) for t, v, (x, y) in
+            ((t, v, val) for t, v, val in log if v == "POS") if t > 200]
+    assert 10 < min(late) and max(late) < 30         # on the ring of the radius-20 octagon

@@ -184,3 +184,18 @@ def test_greedy_tour_from_ownship(domain):
     w.apply("points", "0,0:90,0:50,0:10,0")
     w.apply("greedy_tour", "true")
     assert w.points.tolist() == [[90, 0], [50, 0], [10, 0], [0, 0]]
+
+
+def test_loiter_direction_and_parameters(domain):
+    from behaviors.bhv_loiter import BHV_Loiter
+    info = InfoBuffer()
+    lt = BHV_Loiter(domain, info, "abe")
+    lt.apply("polygon", "0,0:0,10:10,10:10,0")             # clockwise as written
+    lt.apply("clockwise", "false")
+    assert lt.points.tolist() == [[10, 0], [10, 10], [0, 10], [0, 0]]
+    at(info, 9, 11)
+    lt.apply("center_assign", "50,50")
+    assert lt.points.mean(axis=0).tolist() == [50, 50] and lt.ix == 3   # entered at (45,45), the nearest
+    for key, value in (("clockwise", "maybe"), ("points", "1,2"), ("polygon", "radial:: x=0,y=0,radius=5")):
+        with pytest.raises(ValueError):
+            lt.apply(key, value)
