@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
+from typing import NamedTuple
 
 from .message import BINARY, MSG_TYPES, WIRE_DATA_TYPES, MOOSMsg
 
@@ -55,8 +56,25 @@ def encode_message(msg: MOOSMsg) -> bytes:
     ))
 
 
-def decode_message(buf: bytes, pos: int = 0, *, keep_wire: bool = False) -> tuple[MOOSMsg, int]:
-    """Decode the message starting at `pos`; return it and the offset just past it."""
+class WireMsg(NamedTuple):
+    """Where a message sits in a buffer and what a router needs of it, without decoding the rest."""
+
+    start: int
+    end: int
+    msg_type: str
+    data_type: str
+    source: str
+    key: str
+    community_at: int      # offset of the community's length field
+    community_len: int
+
+
+def _layout(buf: bytes, pos: int) -> tuple:
+    """Validate the message at `pos`.
+
+    Returns (end, id, type, dtype, then start and length of source, source aux, community and key,
+    then the offset of the three doubles). Unrolled: this runs once per message through a DB.
+    """
     avail = len(buf)
     if avail - pos < MIN_MESSAGE_SIZE:
         raise CodecError(f"truncated message at byte {pos}: {avail - pos} bytes left, a message needs >= 54")
@@ -64,49 +82,76 @@ def decode_message(buf: bytes, pos: int = 0, *, keep_wire: bool = False) -> tupl
     end = pos + length
     if length < MIN_MESSAGE_SIZE or end > avail:
         raise CodecError(f"message at byte {pos} claims length {length} but {avail - pos} bytes remain")
-    msg_type, data_type = mtype.decode("latin-1"), dtype.decode("latin-1")
+    msg_type, data_type = chr(mtype[0]), chr(dtype[0])
     if msg_type not in MSG_TYPES:
         raise CodecError(f"unknown message type {msg_type!r} at byte {pos}")
     if data_type not in WIRE_DATA_TYPES:
         raise CodecError(f"unknown data type {data_type!r} at byte {pos}")
-    p = pos + 10
-    strings = []
-    for name in ("source", "source aux", "community", "key"):
-        (n,) = _INT.unpack_from(buf, p)
-        p += 4
-        if n < 0 or p + n > end - 28:
-            raise CodecError(f"{name} length {n} runs past the message at byte {pos}")
-        strings.append(buf[p:p + n].decode("latin-1"))
-        p += n
-    time, dval, dval2 = _DOUBLES.unpack_from(buf, p)
-    p += 24
-    (n,) = _INT.unpack_from(buf, p)
-    p += 4
-    if n < 0 or p + n != end:
+    unpack = _INT.unpack_from
+    limit = end - 28          # the three doubles and the sval length follow the strings
+    (n0,) = unpack(buf, pos + 10)
+    s0 = pos + 14
+    p = s0 + n0
+    if n0 < 0 or p > limit:
+        raise CodecError(f"source length {n0} runs past the message at byte {pos}")
+    (n1,) = unpack(buf, p)
+    s1 = p + 4
+    p = s1 + n1
+    if n1 < 0 or p > limit:
+        raise CodecError(f"source aux length {n1} runs past the message at byte {pos}")
+    (n2,) = unpack(buf, p)
+    s2 = p + 4
+    p = s2 + n2
+    if n2 < 0 or p > limit:
+        raise CodecError(f"community length {n2} runs past the message at byte {pos}")
+    (n3,) = unpack(buf, p)
+    s3 = p + 4
+    p = s3 + n3
+    if n3 < 0 or p > limit:
+        raise CodecError(f"key length {n3} runs past the message at byte {pos}")
+    (n,) = unpack(buf, p + 24)
+    if n < 0 or p + 28 + n != end:
         raise CodecError(f"message at byte {pos}: length field {length} disagrees with its fields "
-                         f"({p + max(n, 0) - pos} bytes)")
-    sval = buf[p:end]
-    msg = MOOSMsg(msg_type, data_type, strings[3], dval, "", b"", strings[0], strings[1], strings[2],
-                  time, msg_id, dval2)
+                         f"({p + 28 + max(n, 0) - pos} bytes)")
+    return end, msg_id, msg_type, data_type, s0, n0, s1, n1, s2, n2, s3, n3, p
+
+
+def scan_message(buf: bytes, pos: int = 0) -> WireMsg:
+    """Check the message at `pos` and pick out type, source and key (the DB's notify fast path)."""
+    end, _, msg_type, data_type, s0, n0, _, _, s2, n2, s3, n3, _ = _layout(buf, pos)
+    return WireMsg(pos, end, msg_type, data_type, buf[s0:s0 + n0].decode("latin-1"),
+                   buf[s3:s3 + n3].decode("latin-1"), s2 - 4, n2)
+
+
+def decode_message(buf: bytes, pos: int = 0) -> tuple[MOOSMsg, int]:
+    """Decode the message starting at `pos`; return it and the offset just past it."""
+    end, msg_id, msg_type, data_type, s0, n0, s1, n1, s2, n2, s3, n3, p = _layout(buf, pos)
+    time, dval, dval2 = _DOUBLES.unpack_from(buf, p)
+    msg = MOOSMsg(msg_type, data_type, buf[s3:s3 + n3].decode("latin-1"), dval, "", b"",
+                  buf[s0:s0 + n0].decode("latin-1"), buf[s1:s1 + n1].decode("latin-1"),
+                  buf[s2:s2 + n2].decode("latin-1"), time, msg_id, dval2)
     if data_type == BINARY:
-        msg.binary = bytes(sval)
+        msg.binary = bytes(buf[p + 28:end])
     else:
-        msg.string = sval.decode("latin-1")
-    if keep_wire:
-        msg.wire = bytes(buf[pos:end])
+        msg.string = buf[p + 28:end].decode("latin-1")
     return msg, end
 
 
-def with_community(wire: bytes, community: bytes) -> bytes:
-    """Re-encode a message with an empty community field filled in, splicing instead of re-encoding."""
-    p = 10
-    for _ in range(2):
-        p += 4 + _INT.unpack_from(wire, p)[0]
-    if _INT.unpack_from(wire, p)[0] != 0:
-        raise CodecError("community already set")
-    head = _MSG_HEAD.unpack_from(wire, 0)
-    return b"".join((_MSG_HEAD.pack(head[0] + len(community), *head[1:]), wire[10:p],
-                     _INT.pack(len(community)), community, wire[p + 4:]))
+def fill_community(buf: bytes, where: WireMsg, community: bytes) -> bytes:
+    """The message with its (empty) community set: a splice, the rest of the bytes untouched."""
+    at = where.community_at
+    return b"".join((_INT.pack(where.end - where.start + len(community) - where.community_len),
+                     buf[where.start + 4:at], _INT.pack(len(community)), community,
+                     buf[at + 4 + where.community_len:where.end]))
+
+
+def with_id(wire: bytes, msg_id: int) -> bytes:
+    """The same message with another id (the DB sends current values with id -1)."""
+    return wire[:4] + _INT.pack(msg_id) + wire[8:]
+
+
+def message_id(wire: bytes) -> int:
+    return _INT.unpack_from(wire, 4)[0]
 
 
 def pack_packet(wires: Iterable[bytes]) -> bytes:
@@ -120,7 +165,7 @@ def encode_packet(msgs: Iterable[MOOSMsg]) -> bytes:
     return pack_packet([encode_message(m) for m in msgs])
 
 
-def decode_packet(packet: bytes, *, keep_wire: bool = False) -> list[MOOSMsg]:
+def _packet_count(packet: bytes) -> int:
     if len(packet) < PACKET_HEADER_SIZE:
         raise CodecError(f"packet of {len(packet)} bytes is shorter than its 9-byte header")
     total, count, compressed = _PKT_HEAD.unpack_from(packet, 0)
@@ -130,14 +175,36 @@ def decode_packet(packet: bytes, *, keep_wire: bool = False) -> list[MOOSMsg]:
         raise CodecError(f"compressed packets are not supported (flag {compressed})")
     if count < 0 or count * MIN_MESSAGE_SIZE > total - PACKET_HEADER_SIZE:
         raise CodecError(f"packet claims {count} messages in {total} bytes")
+    return count
+
+
+def _check_end(packet: bytes, pos: int, count: int) -> None:
+    if pos != len(packet):
+        raise CodecError(f"packet has {len(packet) - pos} stray bytes after its {count} messages")
+
+
+def decode_packet(packet: bytes) -> list[MOOSMsg]:
+    count = _packet_count(packet)
     msgs = []
     pos = PACKET_HEADER_SIZE
     for _ in range(count):
-        msg, pos = decode_message(packet, pos, keep_wire=keep_wire)
+        msg, pos = decode_message(packet, pos)
         msgs.append(msg)
-    if pos != total:
-        raise CodecError(f"packet has {total - pos} stray bytes after its {count} messages")
+    _check_end(packet, pos, count)
     return msgs
+
+
+def scan_packet(packet: bytes) -> list[WireMsg]:
+    """Validate a whole packet and locate its messages without decoding them."""
+    count = _packet_count(packet)
+    found = []
+    pos = PACKET_HEADER_SIZE
+    for _ in range(count):
+        where = scan_message(packet, pos)
+        found.append(where)
+        pos = where.end
+    _check_end(packet, pos, count)
+    return found
 
 
 def protocol_matches(slot: bytes) -> bool:

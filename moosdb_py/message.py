@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 # Message-type letters (MOOSMsg.h); the DB and client dispatch on these.
 NOTIFY = "N"
@@ -42,8 +42,7 @@ class MOOSMsg:
     """A MOOS message. Unused doubles are -1 and unset strings empty, as on the wire.
 
     `string` holds the sval field as latin-1 text (lossless for any bytes); for binary ('B')
-    messages the payload is in `binary` instead. `wire`, when set, is the exact encoding the
-    message arrived in, so a DB can forward it without re-encoding.
+    messages the payload is in `binary` instead.
     """
 
     msg_type: str = NULL_MSG
@@ -58,7 +57,6 @@ class MOOSMsg:
     time: float = -1.0
     id: int = -1
     double_aux: float = -1.0
-    wire: bytes | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def notification(cls, key: str, value: float | str | bytes, *, time: float, source: str = "",

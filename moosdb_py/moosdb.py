@@ -72,11 +72,12 @@ def parse_response(spec: str) -> list[tuple[str, float]]:
 
 @dataclass(eq=False)
 class DBVar:
-    """One variable: type fixed by its first write, last message kept as it arrived."""
+    """One variable: type fixed by its first write, last message kept as the bytes that arrived."""
 
     name: str
     data_type: str = NOT_SET
-    last: MOOSMsg | None = None         # the stored value: the message as written (community filled in)
+    wire: bytes = b""                   # the stored value: the message as written (community filled in)
+    source: str = ""                    # its writer
     written_time: float = -1.0
     writers: set[str] = field(default_factory=set)
     writes: int = 0
@@ -86,8 +87,17 @@ class DBVar:
     subscribers: dict = field(default_factory=dict)   # ClientConnection -> [interval, last_sent]
 
     def reset(self) -> None:
-        self.last, self.written_time, self.writes, self.freq, self.window_writes = None, -1.0, 0, 0.0, 0
+        self.wire, self.source, self.written_time, self.writes, self.freq, self.window_writes = b"", "", -1.0, 0, 0.0, 0
         self.writers.clear()
+
+    @property
+    def written(self) -> bool:
+        return self.written_time >= 0
+
+    @property
+    def last(self) -> MOOSMsg:
+        """The stored message, decoded (for summaries and server requests, not the hot path)."""
+        return codec.decode_message(self.wire)[0] if self.wire else MOOSMsg(NOTIFY, self.data_type, self.name)
 
 
 class ClientConnection(asyncio.Protocol):
@@ -235,8 +245,8 @@ class MOOSDB:
         self._housekeeping: asyncio.Task | None = None
         for name, dtype in DB_VARIABLES:
             var = self.vars[name] = DBVar(name, dtype)
-            var.last = MOOSMsg(NOTIFY, dtype, name, self.start_time, source=self.name, community=community,
-                               time=self.start_time)
+            var.wire = codec.encode_message(MOOSMsg(NOTIFY, dtype, name, self.start_time, source=self.name,
+                                                    community=community, time=self.start_time))
             var.window_start = self.start_time
 
     def now(self) -> float:
@@ -340,58 +350,62 @@ class MOOSDB:
 
     # -- packet processing (spec §5) -----------------------------------------------------------
     def process_packet(self, conn: ClientConnection, packet: bytes) -> None:
-        msgs = codec.decode_packet(packet, keep_wire=True)
-        if not msgs:
+        found = codec.scan_packet(packet)
+        if not found:
             return
         now = self.now()
         head: list[bytes] = []
-        if msgs[0].msg_type == TIMING:
-            timing = msgs.pop(0)
+        if found[0].msg_type == TIMING:
+            timing = codec.decode_message(packet, found.pop(0).start)[0]
             self._audit(conn, now, timing.time)
             timing.double, timing.double_aux = now, conn.consolidation
             head.append(codec.encode_message(timing))
         if not conn.asynchronous:   # a synchronous client gets one reply per packet, NULL first
             head.insert(0, codec.encode_message(MOOSMsg(NULL_MSG, DOUBLE, double=now)))
         replies: list[bytes] = []
-        for msg in msgs:
-            mtype = msg.msg_type
+        community = self.community_bytes
+        for where in found:
+            mtype = where.msg_type
             if mtype == NOTIFY:
-                conn.published.add(msg.key)
-                self.notify(msg, now)
-            elif mtype == REGISTER:
-                self.register(conn, msg.key, msg.double)
-            elif mtype == UNREGISTER:
-                self.unregister(conn, msg.key)
-            elif mtype == WILDCARD_REGISTER or mtype == WILDCARD_UNREGISTER:
-                self._wildcard(conn, msg)
-            elif mtype == SERVER_REQUEST:
-                replies[:0] = self.server_request(msg, now)
-            elif mtype not in (COMMAND, NULL_MSG):
-                log.debug("%s: ignoring message type %r", conn, mtype)
+                conn.published.add(where.key)
+                wire = (codec.fill_community(packet, where, community) if where.community_len == 0
+                        else packet[where.start:where.end])
+                self.notify(where.key, where.data_type, where.source, wire, now)
+            elif mtype in (COMMAND, NULL_MSG):
+                continue
+            else:
+                msg = codec.decode_message(packet, where.start)[0]
+                if mtype == REGISTER:
+                    self.register(conn, msg.key, msg.double)
+                elif mtype == UNREGISTER:
+                    self.unregister(conn, msg.key)
+                elif mtype == WILDCARD_REGISTER or mtype == WILDCARD_UNREGISTER:
+                    self._wildcard(conn, msg)
+                elif mtype == SERVER_REQUEST:
+                    replies[:0] = self.server_request(msg, now)
+                else:
+                    log.debug("%s: ignoring message type %r", conn, mtype)
         self.refresh_if_due()
         out = head + replies + conn.take_held()
         if out:
             conn.send(codec.pack_packet(out))
 
-    def notify(self, msg: MOOSMsg, now: float) -> None:
-        var = self.vars.get(msg.key)
+    def notify(self, key: str, data_type: str, source: str, wire: bytes, now: float) -> None:
+        """Store a write (its bytes as they will be forwarded) and queue it for the subscribers."""
+        var = self.vars.get(key)
         if var is None:
-            var = self.vars[msg.key] = DBVar(msg.key, window_start=now)
+            var = self.vars[key] = DBVar(key, window_start=now)
         if var.data_type == NOT_SET:
-            var.data_type = msg.data_type
-            self._apply_filters(var, msg.source)
-        elif var.data_type != msg.data_type:
-            log.info("rejected %s=%r from %s: %s is of type %s", msg.key, msg.value, msg.source, msg.key,
-                     var.data_type)
+            var.data_type = data_type
+            self._apply_filters(var, source)
+        elif var.data_type != data_type:
+            log.info("rejected write of %s by %s: %s is of type %s, not %s", key, source, key, var.data_type,
+                     data_type)
             return
-        wire = msg.wire or codec.encode_message(msg)
-        if not msg.community:
-            msg.community = self.community
-            wire = codec.with_community(wire, self.community_bytes)
-        msg.wire = wire
-        var.last = msg
+        var.wire = wire
+        var.source = source
         var.written_time = now
-        var.writers.add(msg.source)
+        var.writers.add(source)
         var.writes += 1
         var.window_writes += 1
         for conn, sub in var.subscribers.items():
@@ -402,7 +416,9 @@ class MOOSDB:
     def post(self, key: str, value: float | str) -> None:
         """A notify by the DB itself (its DB_* variables)."""
         now = self.now()
-        self.notify(MOOSMsg.notification(key, value, time=now, source=self.name), now)
+        msg = MOOSMsg.notification(key, value, time=now, source=self.name)
+        msg.community = self.community
+        self.notify(key, msg.data_type, self.name, codec.encode_message(msg), now)
 
     def register(self, conn: ClientConnection, key: str, interval: float) -> None:
         if not conn.name:
@@ -413,16 +429,9 @@ class MOOSDB:
             var = self.vars[key] = DBVar(key, window_start=self.now())
         sub = var.subscribers[conn] = [interval, -1e300]   # the first write after this always goes out
         conn.subscribed.add(key)
-        if var.written_time >= 0 and var.last is not None:
+        if var.written:
             sub[1] = self.now()
-            conn.queue(self._current_value(var.last))
-
-    @staticmethod
-    def _current_value(last: MOOSMsg) -> bytes:
-        if last.id == -1:
-            return last.wire
-        return codec.encode_message(MOOSMsg(NOTIFY, last.data_type, last.key, last.double, last.string, last.binary,
-                                            last.source, last.source_aux, last.community, last.time))
+            conn.queue(var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1))
 
     def unregister(self, conn: ClientConnection, key: str) -> None:
         var = self.vars.get(key)
@@ -439,7 +448,7 @@ class MOOSDB:
         if msg.msg_type == WILDCARD_REGISTER:
             conn.filters[(app, pattern)] = interval
         for var in list(self.vars.values()):
-            writer = var.last.source if var.written_time >= 0 and var.last else ""
+            writer = var.source if var.written else ""
             if wild_match(app, writer) and wild_match(pattern, var.name):
                 if msg.msg_type == WILDCARD_REGISTER:
                     self.register(conn, var.name, interval)
@@ -462,8 +471,8 @@ class MOOSDB:
         out: list[MOOSMsg] = []
         if key == "ALL":
             for var in sorted(self.vars.values(), key=lambda v: v.name):
-                last = var.last or MOOSMsg(NOTIFY, var.data_type, var.name)
-                since = var.written_time - self.start_time if var.written_time >= 0 else -1.0
+                last = var.last
+                since = var.written_time - self.start_time if var.written else -1.0
                 out.append(MOOSMsg(NOTIFY, var.data_type, var.name, last.double, last.string, last.binary,
                                    last.source, last.source_aux, last.community, since if since >= 0 else -1.0,
                                    rid, var.freq))
@@ -527,8 +536,8 @@ class MOOSDB:
         lines = []
         for name in sorted(self.vars):
             var = self.vars[name]
+            written = var.written
             last = var.last
-            written = var.written_time >= 0 and last is not None
             stamp = _time.strftime("%H:%M:%S", _time.localtime(var.written_time)) + \
                 f".{int(var.written_time * 1000) % 1000:03d}" if written else ""
             writer = last.source if written else "(write pending)"

@@ -61,11 +61,16 @@ def test_minimal_message_is_54_bytes():
     assert len(codec.encode_message(MOOSMsg())) == 54
 
 
-def test_with_community_equals_full_encoding():
+def test_splices_equal_full_encodings():
     msg = MOOSMsg.notification("X", "hello", time=12.5, source="pub", source_aux="a", msg_id=3)
-    spliced = codec.with_community(codec.encode_message(msg), b"#1")
+    packet = codec.encode_packet([MOOSMsg(), msg])
+    where = codec.scan_packet(packet)[1]
+    assert (where.msg_type, where.data_type, where.source, where.key) == ("N", "S", "pub", "X")
+    spliced = codec.fill_community(packet, where, b"#1")
     msg.community = "#1"
     assert spliced == codec.encode_message(msg)
+    msg.id = -1
+    assert codec.with_id(spliced, -1) == codec.encode_message(msg) and codec.message_id(codec.with_id(spliced, -1)) == -1
 
 
 @pytest.mark.parametrize("mutate, reason", [
