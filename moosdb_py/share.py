@@ -47,7 +47,7 @@ class MalformedDatagram(ValueError):
 
 def encode_datagram(msg: MOOSMsg, dest_name: str, community: str) -> bytes:
     """The datagram for `msg` renamed to `dest_name`; source, aux, time and id are kept."""
-    wire = encode_message(replace(msg, msg_type=NOTIFY, key=dest_name, community=community, wire=None))
+    wire = encode_message(replace(msg, msg_type=NOTIFY, key=dest_name, community=community))
     if len(wire) > MAX_DATAGRAM:
         raise DatagramTooLarge(
             f"{msg.key} -> {dest_name}: {len(wire)} bytes serialised, more than one datagram "
