@@ -37,6 +37,7 @@ DB_CONSOLE_SCRIPT = "moosdb"
 STOP_GRACE = 3.0          # seconds a child gets between SIGTERM and SIGKILL
 DB_READY_TIMEOUT = 10.0
 LAST_LINES = 8
+OUTPUT_CHUNK = 65536
 # Runs `module:attr` with argv = [name, args...]; a class target is a MOOSApp, whose `main` is the entry.
 _BOOT = ("import importlib, sys\n"
          "mod, _, attr = sys.argv[1].partition(':')\n"
@@ -276,13 +277,23 @@ class Antler:
             self.failures.append(name)
             self.say(f"{name} (in-process) failed: {task.exception()}")
 
+    def _echo(self, child: Child, line: bytes) -> None:
+        text = line.decode("utf-8", errors="replace").rstrip("\r")
+        child.last.append(text)
+        if not self.quiet:
+            print(f"[{child.spec.name}] {text}", file=self.out, flush=True)
+
     async def _watch(self, child: Child) -> None:
-        prefix = f"[{child.spec.name}] "
-        while line := await child.process.stdout.readline():
-            text = line.decode("utf-8", errors="replace").rstrip("\n")
-            child.last.append(text)
-            if not self.quiet:
-                print(prefix + text, file=self.out, flush=True)
+        """Echo the child's output by lines; chunked reads, so even a huge line never stalls the pipe."""
+        pending = b""
+        while chunk := await child.process.stdout.read(OUTPUT_CHUNK):
+            *lines, pending = (pending + chunk).split(b"\n")
+            if len(pending) >= OUTPUT_CHUNK:
+                lines, pending = [*lines, pending], b""
+            for line in lines:
+                self._echo(child, line)
+        if pending:
+            self._echo(child, pending)
         code = await child.process.wait()
         if not self.stopping.is_set():
             if code != 0:
