@@ -8,9 +8,18 @@ uSimMarine agree with the C++ apps and with pMarineViewer.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from pyproj import Transformer
+
+
+@lru_cache(maxsize=16)
+def _utm_transformers(zone: int, south: bool) -> tuple[Transformer, Transformer]:
+    """(lat/lon -> UTM, UTM -> lat/lon) for a zone; built once, as pyproj set-up is slow."""
+    utm = f"+proj=utm +zone={zone}{' +south' if south else ''} +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
+    return (Transformer.from_crs("EPSG:4326", utm, always_xy=True),
+            Transformer.from_crs(utm, "EPSG:4326", always_xy=True))
 
 
 def utm_zone(long_origin: float) -> int:
@@ -31,10 +40,7 @@ class LocalGrid:
         self.lat_origin = lat_origin
         self.long_origin = long_origin
         self.zone = utm_zone(long_origin)
-        south = " +south" if lat_origin < 0 else ""
-        utm = f"+proj=utm +zone={self.zone}{south} +ellps=WGS84 +datum=WGS84 +units=m +no_defs"
-        self._forward = Transformer.from_crs("EPSG:4326", utm, always_xy=True)
-        self._inverse = Transformer.from_crs(utm, "EPSG:4326", always_xy=True)
+        self._forward, self._inverse = _utm_transformers(self.zone, lat_origin < 0)
         self.origin_easting, self.origin_northing = self._forward.transform(long_origin, lat_origin)
 
     def to_local(self, lat, lon):
