@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.app_config import config_bool, parse_pairs, unhandled_entries
+from oilspill_moos.app_config import config_bool, format_number, parse_pairs, unhandled_entries
 
 log = logging.getLogger(__name__)
 
@@ -41,11 +41,6 @@ def pairs_at(text: str, where: str) -> dict[str, str]:
         return parse_pairs(text)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
-
-
-def format_warp(warp: float) -> str:
-    """Time warp as pHostInfo writes it: `10`, not `10.0`."""
-    return f"{warp:g}"
 
 
 @dataclass
@@ -96,7 +91,7 @@ def own_host_record(community: str, hostip: str, port_db: int, input_summary: st
         hostip=hostip,
         port_db=str(port_db),
         pshare_iroutes="&".join(routes),
-        timewarp=format_warp(time_warp),
+        timewarp=format_number(time_warp),  # as pHostInfo writes it: 10, not 10.0
     )
 
 
