@@ -213,7 +213,13 @@ class Antler:
         self._hosted_tasks: list[asyncio.Task] = []   # --one-process apps
 
     def say(self, text: str) -> None:
-        print(f"pAntler: {text}", file=self.out, flush=True)
+        self._print(f"pAntler: {text}")
+
+    def _print(self, text: str) -> None:
+        try:
+            print(text, file=self.out, flush=True)
+        except OSError:        # our own output is gone (a closed pipe): keep running and draining the children
+            self.quiet = True
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -281,7 +287,7 @@ class Antler:
         text = line.decode("utf-8", errors="replace").rstrip("\r")
         child.last.append(text)
         if not self.quiet:
-            print(f"[{child.spec.name}] {text}", file=self.out, flush=True)
+            self._print(f"[{child.spec.name}] {text}")
 
     async def _watch(self, child: Child) -> None:
         """Echo the child's output by lines; chunked reads, so even a huge line never stalls the pipe."""
