@@ -69,11 +69,19 @@ class WireMsg(NamedTuple):
     community_len: int
 
 
+def _string_at(buf: bytes, p: int, limit: int, name: str, pos: int) -> tuple[int, int]:
+    """Start and length of the string field whose length prefix is at `p`."""
+    (n,) = _INT.unpack_from(buf, p)
+    if n < 0 or p + 4 + n > limit:
+        raise CodecError(f"{name} length {n} runs past the message at byte {pos}")
+    return p + 4, n
+
+
 def _layout(buf: bytes, pos: int) -> tuple:
     """Validate the message at `pos`.
 
     Returns (end, id, type, dtype, then start and length of source, source aux, community and key,
-    then the offset of the three doubles). Unrolled: this runs once per message through a DB.
+    then the offset of the three doubles).
     """
     avail = len(buf)
     if avail - pos < MIN_MESSAGE_SIZE:
@@ -87,29 +95,13 @@ def _layout(buf: bytes, pos: int) -> tuple:
         raise CodecError(f"unknown message type {msg_type!r} at byte {pos}")
     if data_type not in WIRE_DATA_TYPES:
         raise CodecError(f"unknown data type {data_type!r} at byte {pos}")
-    unpack = _INT.unpack_from
     limit = end - 28          # the three doubles and the sval length follow the strings
-    (n0,) = unpack(buf, pos + 10)
-    s0 = pos + 14
-    p = s0 + n0
-    if n0 < 0 or p > limit:
-        raise CodecError(f"source length {n0} runs past the message at byte {pos}")
-    (n1,) = unpack(buf, p)
-    s1 = p + 4
-    p = s1 + n1
-    if n1 < 0 or p > limit:
-        raise CodecError(f"source aux length {n1} runs past the message at byte {pos}")
-    (n2,) = unpack(buf, p)
-    s2 = p + 4
-    p = s2 + n2
-    if n2 < 0 or p > limit:
-        raise CodecError(f"community length {n2} runs past the message at byte {pos}")
-    (n3,) = unpack(buf, p)
-    s3 = p + 4
+    s0, n0 = _string_at(buf, pos + 10, limit, "source", pos)
+    s1, n1 = _string_at(buf, s0 + n0, limit, "source aux", pos)
+    s2, n2 = _string_at(buf, s1 + n1, limit, "community", pos)
+    s3, n3 = _string_at(buf, s2 + n2, limit, "key", pos)
     p = s3 + n3
-    if n3 < 0 or p > limit:
-        raise CodecError(f"key length {n3} runs past the message at byte {pos}")
-    (n,) = unpack(buf, p + 24)
+    (n,) = _INT.unpack_from(buf, p + 24)
     if n < 0 or p + 28 + n != end:
         raise CodecError(f"message at byte {pos}: length field {length} disagrees with its fields "
                          f"({p + 28 + max(n, 0) - pos} bytes)")
