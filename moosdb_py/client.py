@@ -190,11 +190,14 @@ class MOOSClient:
             self.inbox.extend(mail)
 
     # -- posting -------------------------------------------------------------------------------
-    def _post(self, msg: MOOSMsg) -> None:
+    def post(self, msg: MOOSMsg, *, keep_source: bool = False) -> None:
+        """Queue any message (CMOOSCommClient::Post): numbered, stamped with our name unless
+        `keep_source` (how pShare forwards mail under its original source)."""
         if msg.id != SERVER_REQUEST_ID:
             msg.id = self._next_id
             self._next_id += 1
-        msg.source = self.name
+        if not keep_source:
+            msg.source = self.name
         outbox = self._outbox
         outbox.append(msg)
         if len(outbox) > OUTBOX_LIMIT:
@@ -202,6 +205,8 @@ class MOOSClient:
             del outbox[:len(outbox) // 2]
         if self._wake is not None:
             self._wake.set()
+
+    _post = post   # the name pShare (moosdb_py/share.py) calls; it can switch to post(msg, keep_source=True)
 
     def _apply_subscriptions(self) -> None:
         for key, interval in self.registrations.items():
@@ -212,12 +217,12 @@ class MOOSClient:
     def _send_register(self, key: str, interval: float) -> None:
         if self.connected and self._applied.get(key) != interval:
             self._applied[key] = interval
-            self._post(MOOSMsg(REGISTER, "D", key, float(interval), time=self.moos_time()))
+            self.post(MOOSMsg(REGISTER, "D", key, float(interval), time=self.moos_time()))
 
     def _send_wildcard(self, var: str, app: str, interval: float) -> None:
         if self.connected and self._applied.get((var, app)) != interval:
             self._applied[(var, app)] = interval
-            self._post(MOOSMsg(WILDCARD_REGISTER, STRING, self.name, time=self.moos_time(),
+            self.post(MOOSMsg(WILDCARD_REGISTER, STRING, self.name, time=self.moos_time(),
                                string=f"AppPattern={app},VarPattern={var},Interval={interval:g}"))
 
     def register(self, key: str, interval: float = 0.0) -> None:
@@ -233,16 +238,16 @@ class MOOSClient:
         self.registrations.pop(key, None)
         self._applied.pop(key, None)
         if self.connected:   # also ends a subscription made by a wildcard
-            self._post(MOOSMsg(UNREGISTER, "D", key, 0.0, time=self.moos_time()))
+            self.post(MOOSMsg(UNREGISTER, "D", key, 0.0, time=self.moos_time()))
 
     def notify(self, key: str, value: float | str | bytes, time: float | None = None, source_aux: str = "") -> None:
         self.published.add(key)
-        self._post(MOOSMsg.notification(key, value, time=self.moos_time() if time is None else time,
+        self.post(MOOSMsg.notification(key, value, time=self.moos_time() if time is None else time,
                                         source_aux=source_aux))
 
     def server_request(self, request: str) -> None:
         """Ask the DB for ALL, VAR_SUMMARY, PROC_SUMMARY or DB_CLEAR; replies arrive as mail (id -2)."""
-        self._post(MOOSMsg(SERVER_REQUEST, STRING, request, time=self.moos_time(), id=SERVER_REQUEST_ID))
+        self.post(MOOSMsg(SERVER_REQUEST, STRING, request, time=self.moos_time(), id=SERVER_REQUEST_ID))
 
     def fetch(self) -> list[MOOSMsg]:
         """Mail received since the last fetch (when no `on_mail` callback is set)."""

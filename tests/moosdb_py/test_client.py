@@ -7,6 +7,7 @@ from conftest import start_moosdb
 from helpers import async_wait_until, conformance_files, load_capture
 from moosdb_py import codec
 from moosdb_py.client import MOOSClient
+from moosdb_py.message import MOOSMsg
 
 
 def _run(coro):
@@ -45,11 +46,13 @@ def test_doubles_strings_binary_between_two_clients(moosdb_server):
             pub.notify("X", v)
         pub.notify("S", "hello, world = 1", source_aux="aux")
         pub.notify("B", blob)
-        await async_wait_until(lambda: _values(sub, "B"))
+        pub.post(MOOSMsg.notification("X", 9.0, time=1.0, source="forwarded_from"), keep_source=True)
+        await async_wait_until(lambda: 9.0 in _values(sub, "X"))
         assert _values(sub, "X")[-3:] == [1.0, 2.0, 3.0]
         (s,) = [m for m in sub.inbox if m.key == "S"]
         assert (s.string, s.source, s.source_aux, s.community) == ("hello, world = 1", "pub", "aux", "#1")
         assert _values(sub, "B") == [blob]
+        assert [m.source for m in sub.inbox if m.key == "X"][-1] == "forwarded_from"
         await _close([sub, pub], tasks)
     _run(scenario())
 
