@@ -8,7 +8,7 @@ circle and orientation means compass orientation.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import lru_cache
 
@@ -365,7 +365,6 @@ class Windows:
     horizons_h: tuple = HORIZONS_H
     target_names: tuple = TARGET_NAMES
     scale: str = "hourly"
-    meta: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.inputs)
