@@ -88,10 +88,11 @@ def test_helm_drives_after_override_and_deploy(tmp_path, moosdb_server):
     finally:
         helm.terminate()
         helm.wait(timeout=10)
-    assert "DRIVE" in seen["IVPHELM_STATE"]
-    assert 90.0 in seen["DESIRED_HEADING"] and 2.0 in seen["DESIRED_SPEED"]
-    assert seen["DESIRED_SPEED"][-1] == 0.0          # all-stop zeros once the waypoint is reached
-    assert seen["ARRIVED"] == ["true"]
+    summary = {k: v[-5:] for k, v in seen.items()}
+    assert "DRIVE" in seen["IVPHELM_STATE"], summary
+    assert 90.0 in seen["DESIRED_HEADING"] and 2.0 in seen["DESIRED_SPEED"], summary
+    assert seen["DESIRED_SPEED"][-1] == 0.0, summary          # all-stop zeros once the waypoint is reached
+    assert seen["ARRIVED"] == ["true"], summary
 
 
 async def drive(port: int) -> dict:
@@ -108,7 +109,7 @@ async def drive(port: int) -> dict:
     for var in ("IVPHELM_STATE", "DESIRED_HEADING", "DESIRED_SPEED", "ARRIVED"):
         client.register(var)
 
-    async def until(var, value, timeout=20.0, after=0):
+    async def until(var, value, timeout=45.0, after=0):
         deadline = asyncio.get_running_loop().time() + timeout
         while value not in seen.get(var, [])[after:]:
             assert asyncio.get_running_loop().time() < deadline, f"no {var}={value}; seen {seen}"
