@@ -50,6 +50,8 @@ class MOOSClient:
         self.published: set[str] = set()
         self.inbox: list[MOOSMsg] = []
         self.messages_sent = self.messages_read = 0
+        self.bytes_sent = self.bytes_read = 0
+        self.db_skew = 0.0          # the welcome's dval: DB time - our hello's time (CMOOSCommClient::HandShake)
         self._applied: dict[object, float] = {}
         self._outbox: list[MOOSMsg] = []
         self._next_id = 0
@@ -131,6 +133,7 @@ class MOOSClient:
             raise codec.CodecError(f"expected a welcome, got {reply[0] if reply else 'an empty packet'}")
         self.community = reply[0].community
         self.db_hostname = reply[0].source_aux.partition("=")[2]
+        self.db_skew = reply[0].double
         self.connected = True
         self._applied.clear()
         self._apply_subscriptions()
@@ -147,6 +150,7 @@ class MOOSClient:
                     if self._closing:
                         return
                     raise EOFError("DB closed the connection")
+                self.bytes_read += len(data)
                 framer.feed(data)
                 self._deliver(framer)
         finally:
@@ -170,8 +174,10 @@ class MOOSClient:
                 last_timing = mono
                 msgs.insert(0, MOOSMsg(TIMING, "D", ASYNC_TIMING_KEY, 0.0, time=self.moos_time()))
             if msgs:
-                writer.write(codec.encode_packet(msgs))
+                packet = codec.encode_packet(msgs)
+                writer.write(packet)
                 self.messages_sent += len(msgs)
+                self.bytes_sent += len(packet)
                 await writer.drain()
             if self._closing and not self._outbox:
                 writer.close()
@@ -248,6 +254,11 @@ class MOOSClient:
     def server_request(self, request: str) -> None:
         """Ask the DB for ALL, VAR_SUMMARY, PROC_SUMMARY or DB_CLEAR; replies arrive as mail (id -2)."""
         self.post(MOOSMsg(SERVER_REQUEST, STRING, request, time=self.moos_time(), id=SERVER_REQUEST_ID))
+
+    @property
+    def unsent_messages(self) -> int:
+        """Messages queued but not yet handed to the socket."""
+        return len(self._outbox)
 
     def fetch(self) -> list[MOOSMsg]:
         """Mail received since the last fetch (when no `on_mail` callback is set)."""
