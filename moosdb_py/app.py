@@ -143,7 +143,6 @@ class MOOSApp:
         self._started_mono = _time.monotonic()
         self.on_startup()
         comms = asyncio.create_task(self.client.run(), name=f"{self.name} comms")
-        period = 1.0 / (self.app_tick * self.time_warp)
         try:
             while not self._stop.is_set() and not await self.client.wait_connected(0.5):
                 if comms.done():
@@ -159,7 +158,7 @@ class MOOSApp:
                 if now >= next_status:
                     next_status = now + STATUS_PERIOD
                     self.notify(f"{self.name.upper()}_STATUS", self.status())
-                next_tick = max(next_tick + period, now)
+                next_tick = max(next_tick + 1.0 / (self.app_tick * self.time_warp), now)   # AppTick may change
                 try:
                     async with asyncio.timeout(max(0.0, next_tick - _time.monotonic())):
                         await self._stop.wait()
