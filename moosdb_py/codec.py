@@ -187,14 +187,34 @@ def decode_packet(packet: bytes) -> list[MOOSMsg]:
 
 
 def scan_packet(packet: bytes) -> list[WireMsg]:
-    """Validate a whole packet and locate its messages without decoding them."""
+    """Validate a whole packet and locate its messages without decoding them.
+
+    Busy publishers send runs of messages whose bytes from the type letters to the end of the key
+    are identical (same variable, same source); such a message is recognised by that prefix and
+    only its lengths are checked, which is what makes a DB's fan-in fast.
+    """
     count = _packet_count(packet)
     found = []
     pos = PACKET_HEADER_SIZE
+    total = len(packet)
+    unpack = _INT.unpack_from
+    prefix = b""          # bytes 8..end-of-key of the last fully checked message
     for _ in range(count):
-        where = scan_message(packet, pos)
-        found.append(where)
-        pos = where.end
+        if prefix and packet.startswith(prefix, pos + 8):
+            (length,) = unpack(packet, pos)
+            end = pos + length
+            p = pos + 8 + len(prefix)            # the three doubles
+            if end <= total and p + 28 <= end and unpack(packet, p + 24)[0] == end - p - 28:
+                found.append(WireMsg(pos, end, last.msg_type, last.data_type, last.source, last.key,
+                                     pos + community_rel, last.community_len))
+                pos = end
+                continue
+        last = scan_message(packet, pos)
+        community_rel = last.community_at - pos
+        key_end = last.community_at + 8 + last.community_len + len(last.key)
+        prefix = packet[pos + 8:key_end]
+        found.append(last)
+        pos = last.end
     _check_end(packet, pos, count)
     return found
 

@@ -70,7 +70,7 @@ def parse_response(spec: str) -> list[tuple[str, float]]:
     return out
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class DBVar:
     """One variable: type fixed by its first write, last message kept as the bytes that arrived."""
 
@@ -79,16 +79,13 @@ class DBVar:
     wire: bytes = b""                   # the stored value: the message as written (community filled in)
     source: str = ""                    # its writer
     written_time: float = -1.0
-    writers: set[str] = field(default_factory=set)
-    writes: int = 0
     freq: float = 0.0
     window_writes: int = 0
     window_start: float = 0.0
     subscribers: dict = field(default_factory=dict)   # ClientConnection -> [interval, last_sent]
 
     def reset(self) -> None:
-        self.wire, self.source, self.written_time, self.writes, self.freq, self.window_writes = b"", "", -1.0, 0, 0.0, 0
-        self.writers.clear()
+        self.wire, self.source, self.written_time, self.freq, self.window_writes = b"", "", -1.0, 0.0, 0
 
     @property
     def written(self) -> bool:
@@ -364,10 +361,12 @@ class MOOSDB:
             head.insert(0, codec.encode_message(MOOSMsg(NULL_MSG, DOUBLE, double=now)))
         replies: list[bytes] = []
         community = self.community_bytes
+        published = conn.published
         for where in found:
             mtype = where.msg_type
             if mtype == NOTIFY:
-                conn.published.add(where.key)
+                if where.key not in published:
+                    published.add(where.key)
                 wire = (codec.fill_community(packet, where, community) if where.community_len == 0
                         else packet[where.start:where.end])
                 self.notify(where.key, where.data_type, where.source, wire, now)
@@ -405,8 +404,6 @@ class MOOSDB:
         var.wire = wire
         var.source = source
         var.written_time = now
-        var.writers.add(source)
-        var.writes += 1
         var.window_writes += 1
         for conn, sub in var.subscribers.items():
             if sub[0] <= 0.0 or now - sub[1] >= sub[0]:

@@ -115,3 +115,30 @@ def test_value_types():
     assert MOOSMsg.notification("A", b"\0", time=0).value == b"\0"
     with pytest.raises(TypeError, match="A"):
         MOOSMsg.notification("A", None, time=0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(picks=st.lists(st.tuples(st.sampled_from(["X", "NAV_X", "Y"]), st.sampled_from(["a", "bb"]),
+                                st.sampled_from(["", "#1"]), st.one_of(floats, names)), min_size=1, max_size=12))
+def test_scan_packet_agrees_with_decode(picks):
+    """Runs of same-prefix messages take the fast path; it must locate exactly what decoding finds."""
+    msgs = []
+    for i, (key, source, community, value) in enumerate(picks):
+        msg = MOOSMsg.notification(key, value, time=float(i), source=source, msg_id=i)
+        msg.community = community
+        msgs.append(msg)
+    packet = codec.encode_packet(msgs)
+    found = codec.scan_packet(packet)
+    assert [(w.msg_type, w.data_type, w.source, w.key, w.community_len) for w in found] == \
+        [(m.msg_type, m.data_type, m.source, m.key, len(m.community)) for m in msgs]
+    assert [codec.decode_message(packet[w.start:w.end])[0] for w in found] == msgs
+    assert all(packet[w.community_at:w.community_at + 4] == len(m.community).to_bytes(4, "little")
+               for w, m in zip(found, msgs))
+
+
+def test_scan_packet_fast_path_still_checks_lengths():
+    same = [MOOSMsg.notification("X", "abc", time=1.0, source="p") for _ in range(3)]
+    packet = bytearray(codec.encode_packet(same))
+    packet[-7] = 9                                # the last message's sval length: 3 -> 9
+    with pytest.raises(codec.CodecError):
+        codec.scan_packet(bytes(packet))
