@@ -209,3 +209,19 @@ def test_loiter_acquires_then_circles_the_lab_polygon(corpus, domain):
     late = [math.hypot(x - centre[0], y - centre[1]) for t, v, (x, y) in
             ((t, v, val) for t, v, val in log if v == "POS") if t > 200]
     assert 10 < min(late) and max(late) < 30         # on the ring of the radius-20 octagon
+
+
+def test_nostarve_post_mapping_and_conditional_flags(domain, make_bhv):
+    helm = Helm([make_bhv("Behavior = BHV_ConstantSpeed\n{\n speed = 1\n nostarve = FEED,3\n"
+                          " runxflag = TICK = $[CTR]\n runflag = GO = yes [if] LEVEL > 2\n"
+                          " activeflag = OLD = 1\n post_mapping = OLD,NEW\n idleflag = HUSH = 1\n"
+                          " post_mapping = HUSH,silent\n}\n")], domain, "v", active_start=True)
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 3, log=log, pokes={1.0: {"LEVEL": 5.0}, 1.5: {"FEED": "x"}})
+    assert [t for t, v, _ in log if v == "GO"] == [1.5]
+    assert [val for _, v, val in log if v == "TICK"][:3] == [1.0, 2.0, 3.0]
+    assert [v for _, v, _ in log if v in ("OLD", "NEW", "HUSH")] == ["NEW"]
+    log.clear()
+    run(helm, Boat(), 6, start=3.0, log=log)                 # FEED goes stale after 3 s
+    assert any(v == "IVPHELM_BHV_IDLE" and val == "const_speed" for _, v, val in log)
