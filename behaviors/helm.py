@@ -225,7 +225,7 @@ class Helm:
 
     def _desired_name(self, var: str, prefixed: bool = True) -> str:
         name = "DESIRED_HEADING" if var == "course" else f"DESIRED_{var.upper()}"
-        return f"{self.helm_prefix}_{name}" if prefixed and self.helm_prefix else name
+        return f"{self.helm_prefix}{name}" if prefixed else name   # plain concatenation, as MOOS-IvP
 
     # ---- modes ----------------------------------------------------------------------
     def _evaluate_modes(self, now: float) -> list[HelmPost]:

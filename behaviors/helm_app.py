@@ -43,7 +43,7 @@ ProcessConfig = pHelmIvP
   active_start    = false         // true (aliases start_engaged, start_in_drive): DRIVE at start
   allow_park      = true          // MOOS_MANUAL_OVERRIDE=true may park the helm
   park_on_allstop = false         // any all-stop other than clear parks the helm
-  helm_prefix     =               // DESIRED_* posts become <prefix>_DESIRED_*
+  helm_prefix     =               // prepended to the DESIRED_* names (e.g. SIM_ -> SIM_DESIRED_HEADING)
   ok_skew         = 60            // seconds, or any: ignore mail stamped further from MOOS time
   goals_mandatory = false         // accepted for compatibility
   nav_grace       = 5             // accepted for compatibility

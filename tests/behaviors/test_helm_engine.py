@@ -225,3 +225,15 @@ def test_nostarve_post_mapping_and_conditional_flags(domain, make_bhv):
     log.clear()
     run(helm, Boat(), 6, start=3.0, log=log)                 # FEED goes stale after 3 s
     assert any(v == "IVPHELM_BHV_IDLE" and val == "const_speed" for _, v, val in log)
+
+
+def test_helm_prefix_names_the_decision_but_not_the_zeros(domain, make_bhv):
+    helm = Helm([make_bhv("initialize GO = true\nBehavior = BHV_ConstantHeading\n{\n condition = GO = true\n"
+                          " heading = 30\n}\nBehavior = BHV_ConstantSpeed\n{\n condition = GO = true\n speed = 1\n}\n")],
+                domain, "v", active_start=True, helm_prefix="SIM_")
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 3, log=log, pokes={2.0: {"GO": "false"}})
+    assert {v for _, v, _ in log if "DESIRED" in v} == {"SIM_DESIRED_HEADING", "SIM_DESIRED_SPEED",
+                                                        "DESIRED_HEADING", "DESIRED_SPEED"}
+    assert [val for _, v, val in log if v == "DESIRED_SPEED"] == [0.0]
