@@ -177,7 +177,7 @@ BLOCKS = st.lists(st.tuples(KEYS, st.lists(st.tuples(KEYS, VALUES, BLANKS, st.bo
                   min_size=1, max_size=4, unique_by=lambda b: b[0].lower())
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(blocks=BLOCKS, pad=BLANKS)
 def test_render_then_parse_property(tmp_path_factory, blocks, pad):
     """Whatever the spacing and comments, every block comes back with its entries in order."""
