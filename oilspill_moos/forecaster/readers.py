@@ -63,6 +63,8 @@ def _polygonal(geometry) -> list[Polygon]:
 
 def _clean(path, index: int, geometry, repair: bool, repaired: list[str]) -> list[Polygon]:
     """Polygons of one feature, valid, or a clear error."""
+    if not np.isfinite(shapely.get_coordinates(geometry)).all():
+        raise PolygonFileError(path, "non-finite coordinate (NaN or infinity)", index)
     if geometry.is_valid:
         return _polygonal(geometry)
     reason = explain_validity(geometry)
@@ -91,8 +93,28 @@ def _parse_crs(path, text: str) -> pyproj.CRS:
 def _check_lonlat(path, polygons: list[Polygon]) -> None:
     minx, miny, maxx, maxy = shapely.total_bounds(polygons)
     if minx < -180 or maxx > 180 or miny < -90 or maxy > 90:
-        raise PolygonFileError(path, f"coordinates ({minx:.0f}..{maxx:.0f}, {miny:.0f}..{maxy:.0f}) are not "
+        raise PolygonFileError(path, f"coordinates ({minx:.6g}..{maxx:.6g}, {miny:.6g}..{maxy:.6g}) are not "
                                      "lon/lat degrees and no CRS is declared")
+
+
+def _properties(path, feature: dict, index: int) -> dict:
+    props = feature.get("properties")
+    if props is None:
+        return {}
+    if not isinstance(props, dict):
+        raise PolygonFileError(path, f"'properties' is a {type(props).__name__}, not an object", index)
+    return props
+
+
+def _declared_crs(path, doc) -> str | None:
+    """The name in a GeoJSON 2008 ``crs`` member, or None when there is no such member."""
+    crs = doc.get("crs") if isinstance(doc, dict) else None
+    if crs is None:
+        return None
+    name = crs.get("properties", {}).get("name") if isinstance(crs, dict) and isinstance(crs.get("properties"), dict) else None
+    if not isinstance(name, str):
+        raise PolygonFileError(path, "'crs' member without a properties.name string")
+    return name
 
 
 def _geojson_features(path, doc) -> list[tuple[dict | None, dict]]:
@@ -101,10 +123,10 @@ def _geojson_features(path, doc) -> list[tuple[dict | None, dict]]:
         features = doc.get("features")
         if not isinstance(features, list):
             raise PolygonFileError(path, "FeatureCollection without a 'features' list")
-        return [(f.get("geometry"), f.get("properties") or {}) if isinstance(f, dict) else (None, {})
-                for f in features]
+        return [(f.get("geometry"), _properties(path, f, i)) if isinstance(f, dict) else (None, {})
+                for i, f in enumerate(features)]
     if kind == "Feature":
-        return [(doc.get("geometry"), doc.get("properties") or {})]
+        return [(doc.get("geometry"), _properties(path, doc, 0))]
     if kind in ("Polygon", "MultiPolygon", "GeometryCollection"):
         return [(doc, {})]
     raise PolygonFileError(path, f"not a GeoJSON FeatureCollection, Feature or polygon (type {kind!r})")
@@ -118,16 +140,15 @@ def read_geojson(path, *, crs=None, repair: bool = True) -> PolygonFile:
         raise PolygonFileError(path, f"cannot read: {exc}") from None
     except json.JSONDecodeError as exc:
         raise PolygonFileError(path, f"line {exc.lineno}: not JSON ({exc.msg})") from None
-    declared = crs
-    if declared is None and isinstance(doc, dict) and isinstance(doc.get("crs"), dict):
-        declared = (doc["crs"].get("properties") or {}).get("name")
+    declared = crs if crs is not None else _declared_crs(path, doc)
     polygons, properties, repaired, skipped = [], [], [], []
     for index, (geom, props) in enumerate(_geojson_features(path, doc)):
         if geom is None:
             skipped.append(f"feature #{index + 1}: no geometry")
             continue
         try:
-            geometry = shape(geom)
+            with np.errstate(invalid="ignore"):  # NaN coordinates are reported by _clean, by feature
+                geometry = shape(geom)
         except (ValueError, TypeError, KeyError, AttributeError, shapely.errors.ShapelyError) as exc:
             raise PolygonFileError(path, f"malformed geometry ({exc})", index) from None
         parts = _clean(path, index, geometry, repair, repaired)

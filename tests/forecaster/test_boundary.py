@@ -3,6 +3,8 @@ import math
 from datetime import datetime, timezone
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import shapely
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point
@@ -79,3 +81,22 @@ def test_outline_is_the_open_exterior_ring_of_the_largest_part():
     ring = outline(lobes)
     assert len(ring) == 32 and ring[0] != ring[-1]
     assert shapely.geometry.Polygon(ring).contains(to_lonlat(Point(9_000, 0)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.floats(500, 20_000), ratio=st.floats(1.0, 8.0), angle=st.floats(0, 180),
+       dx=st.floats(-50, 50), dy=st.floats(-50, 50), growth=st.floats(-1.0, 1.5),
+       new_ratio=st.floats(1.0, 8.0), new_angle=st.floats(0, 180))
+def test_rebuilt_ellipse_matches_any_prediction(a, ratio, angle, dx, dy, growth, new_ratio, new_angle):
+    last = ellipse(3_000, -2_000, a, a / ratio, angle)
+    f = features_of(last)
+    want = {"centroid_x_km": f[F["centroid_x_km"]] + dx, "centroid_y_km": f[F["centroid_y_km"]] + dy,
+            "log_area_km2": f[F["log_area_km2"]] + growth, "aspect_ratio": new_ratio,
+            "orientation_cos2": math.cos(math.radians(2 * new_angle)),
+            "orientation_sin2": math.sin(math.radians(2 * new_angle))}
+    got = features_of(rebuild_boundary(last, want))
+    for name in ("centroid_x_km", "centroid_y_km", "log_area_km2"):
+        assert got[F[name]] == pytest.approx(want[name], abs=1e-3), name
+    assert got[F["aspect_ratio"]] == pytest.approx(new_ratio, rel=2e-3)
+    if new_ratio > 1.05:  # a near-disc has no meaningful axis
+        assert (axis_deg(got) - new_angle + 90) % 180 - 90 == pytest.approx(0.0, abs=0.5)

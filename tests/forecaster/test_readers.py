@@ -6,6 +6,8 @@ from pathlib import Path
 import numpy as np
 import pyproj
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 import shapefile
 import shapely
 from shapely.geometry import Point, box, mapping
@@ -64,6 +66,14 @@ def test_empty_collection_and_only_points_are_errors(tmp_path):
 def test_skips_null_and_point_features_but_keeps_polygons(tmp_path):
     obs = read_polygons(write_geojson(tmp_path / "mixed.geojson", [None, Point(-88, 28), box(-88.5, 28.5, -88.4, 28.6)]))
     assert len(obs.polygons) == 1 and len(obs.skipped) == 2
+
+
+@pytest.mark.parametrize("bad", ["NaN", "Infinity"])
+def test_non_finite_coordinates_are_refused(tmp_path, bad):
+    path = tmp_path / "nan.geojson"
+    path.write_text('{"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [%s, 1], [0, 0]]]}' % bad)
+    with pytest.raises(PolygonFileError, match="feature #1: non-finite coordinate"):
+        read_polygons(path)
 
 
 def test_projected_coordinates_without_crs_are_refused(tmp_path):
@@ -133,3 +143,32 @@ def test_time_from_properties_name_or_argument(tmp_path):
     bad = write_geojson(tmp_path / "badtime.geojson", [box(-88.5, 28.6, -88.3, 28.8)], properties={"time": "noon"})
     with pytest.raises(PolygonFileError, match="'time' = 'noon' is not an ISO time"):
         read_polygons(bad)
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.floats(allow_nan=False, width=32) | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(
+        st.sampled_from(["type", "features", "geometry", "coordinates", "crs", "properties", "name"]), inner, max_size=4),
+    max_leaves=20)
+numbers = st.floats(min_value=-200, max_value=200, allow_nan=False) | st.just(float("inf"))
+rings = st.lists(st.lists(numbers, min_size=1, max_size=3), min_size=0, max_size=6)
+polygon = st.fixed_dictionaries({"type": st.just("Polygon"), "coordinates": st.lists(rings, max_size=2)})
+feature = st.fixed_dictionaries({"type": st.just("Feature"), "geometry": polygon | json_values,
+                                 "properties": json_values})
+geojson_like = st.fixed_dictionaries({
+    "type": st.sampled_from(["FeatureCollection", "Feature", "Polygon", "MultiPolygon", "Point", "Bogus"]),
+    "features": st.lists(feature, max_size=3) | json_values, "geometry": polygon | json_values,
+    "coordinates": st.lists(rings, max_size=2) | json_values, "crs": json_values | st.just(None)})
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(doc=geojson_like | json_values)
+def test_any_json_gives_polygons_or_a_polygon_file_error(tmp_path, doc):
+    path = tmp_path / "fuzz.geojson"
+    path.write_text(json.dumps(doc))
+    try:
+        obs = read_polygons(path)
+    except PolygonFileError as exc:
+        assert str(exc).startswith(str(path))
+    else:
+        assert obs.polygons and all(p.is_valid for p in obs.polygons)
