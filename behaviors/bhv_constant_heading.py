@@ -6,10 +6,10 @@ from .bhv_constant_speed import OneVarPeak
 
 class BHV_ConstantHeading(OneVarPeak):
     type_name = "BHV_ConstantHeading"
-    default_name = "const_heading"
+    default_name = "bhv_constantHeading"
     decision_var = "course"
     value_param = "heading"
     value_wrap = True
     peakwidth = 10.0
     basewidth = 170.0
-    summitdelta = 5.0   # a plateau of equal utility would let ties pick the heading
+    summitdelta = 25.0

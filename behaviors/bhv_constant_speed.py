@@ -15,6 +15,9 @@ class OneVarPeak(IvPBehavior):
     peakwidth = 0.0
     basewidth = 0.0
     summitdelta = 0.0
+    # These behaviours time out at once unless given a `duration` (or `duration = no-time-limit`),
+    # as in MOOS-IvP: they are meant to be bounded in time.
+    default_duration = 0.0
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -22,6 +25,7 @@ class OneVarPeak(IvPBehavior):
         self.peakwidth, self.basewidth, self.summitdelta = (type(self).peakwidth, type(self).basewidth,
                                                             type(self).summitdelta)
         self.domain_vars = (self.decision_var,)
+        self.duration.limit = self.default_duration
 
     def set_param(self, key: str, value: str) -> bool:
         if key == self.value_param:
@@ -55,5 +59,5 @@ class BHV_ConstantSpeed(OneVarPeak):
     """Hold one speed (a peak over speed only); usually with a `duration`."""
 
     type_name = "BHV_ConstantSpeed"
-    default_name = "const_speed"
+    default_name = "bhv_constant_speed"
     basewidth = 0.2

@@ -20,8 +20,8 @@ Value = Union[float, str]
 _NAME_OK = re.compile(r"^[A-Za-z0-9_\-\[\]()#@+]+$")
 # Default names of unnamed behaviours (two unnamed ones of a type clash).
 DEFAULT_NAMES = {"bhv_waypoint": "bhv_waypoint", "bhv_stationkeep": "station_keep",
-                 "bhv_constantspeed": "const_speed", "bhv_constantheading": "const_heading",
-                 "bhv_constantdepth": "const_depth"}
+                 "bhv_constantspeed": "bhv_constant_speed", "bhv_constantheading": "bhv_constantHeading",
+                 "bhv_constantdepth": "bhv_constantdepth", "bhv_loiter": "loiter"}
 
 
 class BhvParam(BaseModel):

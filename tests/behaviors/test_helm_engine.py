@@ -169,19 +169,20 @@ def test_another_helm_state_disables_and_deferred_initialize(domain, make_bhv):
 
 def test_spawned_behavior_from_template(domain, make_bhv):
     helm = Helm([make_bhv("Behavior = BHV_ConstantSpeed\n{\n name = cs_\n templating = spawn\n updates = CS\n"
-                          " speed = 1\n}\nBehavior = BHV_ConstantHeading\n{\n heading = 45\n}\n")],
+                          " speed = 1\n duration = no-time-limit\n}\nBehavior = BHV_ConstantHeading\n{\n"
+                          " heading = 45\n duration = no-time-limit\n}\n")],
                 domain, "v", active_start=True)
     helm.startup(0.0)
     log = []
     run(helm, Boat(), 2, log=log, pokes={1.5: {"CS": "name=a # speed=2.5"}})
-    assert [b.name for b in helm.behaviors] == ["const_heading", "cs_a"]
+    assert [b.name for b in helm.behaviors] == ["bhv_constantHeading", "cs_a"]
     assert any(v == "IVPHELM_LIFE_EVENT" and "bname=cs_a" in val and "event=spawn" in val for _, v, val in log)
     assert [val for _, v, val in log if v == "DESIRED_SPEED"][-1] == 2.5
     assert [val for _, v, val in log if v == "DESIRED_HEADING"][-1] == 45
 
 
 def test_constant_depth_needs_and_uses_the_depth_domain(domain, make_bhv):
-    bhv = make_bhv("Behavior = BHV_ConstantDepth\n{\n depth = 8\n}\nBehavior = BHV_StationKeep\n{\n point = 0,0\n}\n")
+    bhv = make_bhv("Behavior = BHV_ConstantDepth\n{\n depth = 8\n duration = -1\n}\nBehavior = BHV_StationKeep\n{\n point = 0,0\n}\n")
     with pytest.raises(MissionFileError, match="needs domain variable"):
         Helm([bhv], domain)
     from behaviors.domain import parse_domain_line
@@ -213,7 +214,7 @@ def test_loiter_acquires_then_circles_the_lab_polygon(corpus, domain):
 
 def test_nostarve_post_mapping_and_conditional_flags(domain, make_bhv):
     helm = Helm([make_bhv("Behavior = BHV_ConstantSpeed\n{\n speed = 1\n nostarve = FEED,3\n"
-                          " runxflag = TICK = $[CTR]\n runflag = GO = yes [if] LEVEL > 2\n"
+                          " duration = no-time-limit\n runxflag = TICK = $[CTR]\n runflag = GO = yes [if] LEVEL > 2\n"
                           " activeflag = OLD = 1\n post_mapping = OLD,NEW\n idleflag = HUSH = 1\n"
                           " post_mapping = HUSH,silent\n}\n")], domain, "v", active_start=True)
     helm.startup(0.0)
@@ -224,12 +225,13 @@ def test_nostarve_post_mapping_and_conditional_flags(domain, make_bhv):
     assert [v for _, v, _ in log if v in ("OLD", "NEW", "HUSH")] == ["NEW"]
     log.clear()
     run(helm, Boat(), 6, start=3.0, log=log)                 # FEED goes stale after 3 s
-    assert any(v == "IVPHELM_BHV_IDLE" and val == "const_speed" for _, v, val in log)
+    assert any(v == "IVPHELM_BHV_IDLE" and val == "bhv_constant_speed" for _, v, val in log)
 
 
 def test_helm_prefix_names_the_decision_but_not_the_zeros(domain, make_bhv):
     helm = Helm([make_bhv("initialize GO = true\nBehavior = BHV_ConstantHeading\n{\n condition = GO = true\n"
-                          " heading = 30\n}\nBehavior = BHV_ConstantSpeed\n{\n condition = GO = true\n speed = 1\n}\n")],
+                          " heading = 30\n duration = -1\n}\nBehavior = BHV_ConstantSpeed\n{\n condition = GO = true\n"
+                          " speed = 1\n duration = -1\n}\n")],
                 domain, "v", active_start=True, helm_prefix="SIM_")
     helm.startup(0.0)
     log = []
@@ -237,3 +239,13 @@ def test_helm_prefix_names_the_decision_but_not_the_zeros(domain, make_bhv):
     assert {v for _, v, _ in log if "DESIRED" in v} == {"SIM_DESIRED_HEADING", "SIM_DESIRED_SPEED",
                                                         "DESIRED_HEADING", "DESIRED_SPEED"}
     assert [val for _, v, val in log if v == "DESIRED_SPEED"] == [0.0]
+
+
+def test_constant_behaviours_time_out_at_once_without_a_duration(domain, make_bhv):
+    helm = Helm([make_bhv("Behavior = BHV_ConstantSpeed\n{\n speed = 1\n endflag = DONE = $[BHVNAME]\n}\n")],
+                domain, "v", active_start=True)
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 2, log=log)
+    assert [(t, val) for t, v, val in log if v == "DONE"] == [(1.0, "bhv_constant_speed")]
+    assert helm.behaviors == [] and "DESIRED_SPEED" not in [v for _, v, val in log if val != 0.0]
