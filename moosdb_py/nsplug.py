@@ -17,9 +17,11 @@ error, while other `#` lines (comments in a .bhv) pass through as nsplug passes 
 """
 from __future__ import annotations
 
+import argparse
 import difflib
 import os
 import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -96,19 +98,21 @@ class _Context:
     macros: Macros
     include_paths: tuple[Path, ...]
     strict: bool
+    lenient: bool = False
     stack: list[Path] = field(default_factory=list)
 
 
 def preprocess(path, defines: dict[str, str | None] | None = None, include_paths=(), strict: bool = False,
-               tag: str | None = None) -> list[SourceLine]:
+               tag: str | None = None, lenient: bool = False) -> list[SourceLine]:
     """Expand an nsplug template into its lines, each tagged with its original file and line.
 
     `defines` are the command-line macros (`VAR=value`; a None value is a bare `VAR`). Includes are
     looked up in the including file's folder, then in `include_paths`, then in the current working
     directory (nsplug's own `.`). `tag` selects one `<tag>` section of the top-level file, as
-    nsplug's `--tag`. Raises MissionFileError naming file:line.
+    nsplug's `--tag`; `lenient` emits partially expanded lines (nsplug's `-l`). Raises
+    MissionFileError naming file:line.
     """
-    context = _Context(Macros(defines), tuple(Path(p) for p in include_paths), strict)
+    context = _Context(Macros(defines), tuple(Path(p) for p in include_paths), strict, lenient)
     path = Path(path)
     if not path.is_file():
         raise MissionFileError(path, 0, "file not found")
@@ -279,7 +283,8 @@ def _emit(src: SourceLine, context: _Context) -> SourceLine:
     if "$(" in expanded or "%(" in expanded:
         if context.strict and not src.text.lstrip().startswith("//"):
             raise MissionFileError.at(src, f"unexpanded macro in: {expanded.strip()}")
-        return src  # QUIRK (spec 3.3): the whole line stays in its original form
+        if not context.lenient:
+            return src  # QUIRK (spec 3.3): the whole line stays in its original form
     return SourceLine(expanded, src.file, src.line)
 
 
@@ -292,3 +297,53 @@ def parse_defines(pairs) -> dict[str, str | None]:
             raise ValueError(f"bad macro definition '{pair}': expected VAR=value")
         table[name] = value if sep else None
     return table
+
+
+def read_macro_file(path: Path) -> dict[str, str | None]:
+    """nsplug's `--macros=file`: `NAME=value` (or bare `NAME`) lines; `#` and `//` lines are comments."""
+    lines = [t.strip() for t in path.read_text(encoding="latin-1").splitlines()]
+    return parse_defines(t for t in lines if t and not t.startswith(("#", "//")))
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="nsplug", description="Expand an nsplug template (meta_*.moos/.bhv) "
+                                "as MOOS-IvP's nsplug does: nsplug infile outfile [options] [MACRO=value ...]")
+    p.add_argument("infile")
+    p.add_argument("words", nargs="*", metavar="outfile MACRO=value",
+                   help="the output file (unless -t), then macros: NAME=value, or a bare NAME (defined, empty)")
+    p.add_argument("-f", "--force", action="store_true", help="overwrite the output file without asking")
+    p.add_argument("-i", "--interactive", action="store_true", help="ask before overwriting (the default)")
+    p.add_argument("-t", "--terminal", action="store_true", help="print to stdout instead of an output file")
+    p.add_argument("-s", "--strict", action="store_true", help="fail on any unexpanded macro")
+    p.add_argument("-l", "--lenient", action="store_true", help="emit partially expanded lines")
+    p.add_argument("--path", default="", help="include folders, colon-separated")
+    p.add_argument("--tag", help="expand only this <tag> section of the input")
+    p.add_argument("--macros", type=Path, help="a file of NAME=value lines")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_intermixed_args(argv)
+    words = list(args.words)
+    out = None if args.terminal else (Path(words.pop(0)) if words else None)
+    try:
+        if out is None and not args.terminal:
+            raise ValueError("an output file is needed (or -t for the terminal)")
+        defines = read_macro_file(args.macros) if args.macros else {}
+        defines.update(parse_defines(words))
+        lines = preprocess(args.infile, defines, [p for p in args.path.split(":") if p], strict=args.strict,
+                           tag=args.tag, lenient=args.lenient)
+    except (OSError, ValueError) as exc:   # MissionFileError is a ValueError: file:line: message
+        print(f"nsplug: {exc}", file=sys.stderr)
+        return 1
+    text = "".join(line.text + "\n" for line in lines)
+    if out is None:
+        sys.stdout.write(text)
+        return 0
+    if out.exists() and not args.force:
+        answer = input(f"nsplug: {out} exists. Overwrite? [y/N] ") if sys.stdin.isatty() else ""
+        if answer.strip().lower() not in ("y", "yes"):
+            print(f"nsplug: {out} exists; not overwritten (use -f)", file=sys.stderr)
+            return 1
+    out.write_text(text, encoding="latin-1")
+    return 0

@@ -4,6 +4,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from moosdb_py.nsplug import main as nsplug_main
 from moosdb_py.nsplug import parse_defines, preprocess
 from moosdb_py.source import MissionFileError
 
@@ -240,3 +241,19 @@ def test_plain_text_passes_through_and_includes_are_transparent(tmp_path_factory
     (tmp_path / "part.moos").write_text("".join(line + "\n" for line in included))
     lines = expand(tmp_path, "".join(line + "\n" for line in [*before, "#include part.moos", *after]))
     assert lines == [*before, *included, "", *after, ""]   # nsplug's empty line at the end of each file
+
+
+def test_command_line_like_nsplug(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "inc").mkdir()
+    (tmp_path / "inc" / "plug.moos").write_text("MOOSTimeWarp = $(WARP)\n")
+    (tmp_path / "meta.moos").write_text("Community = $(VNAME)\n#include plug.moos\nx = $(NOPE) $(VNAME)\n")
+    (tmp_path / "macros.txt").write_text("# launch defaults\nWARP=10\n// more\nVNAME=zed\n")
+    assert nsplug_main(["meta.moos", "targ.moos", "--path=inc", "--macros=macros.txt", "VNAME=abe"]) == 0
+    assert (tmp_path / "targ.moos").read_text() == "Community = abe\nMOOSTimeWarp = 10\n\nx = $(NOPE) $(VNAME)\n\n"
+    assert nsplug_main(["meta.moos", "targ.moos", "--path=inc", "VNAME=abe"]) == 1   # exists, no -f
+    assert "not overwritten (use -f)" in capsys.readouterr().err
+    assert nsplug_main(["meta.moos", "-t", "-l", "--path=inc", "VNAME=abe", "WARP=2"]) == 0
+    assert capsys.readouterr().out == "Community = abe\nMOOSTimeWarp = 2\n\nx = $(NOPE) abe\n\n"
+    assert nsplug_main(["meta.moos", "targ.moos", "-f", "-s", "--path=inc", "VNAME=abe", "WARP=2"]) == 1
+    assert f"nsplug: meta.moos:3: unexpanded macro in: x = $(NOPE) abe" in capsys.readouterr().err
