@@ -1,0 +1,341 @@
+"""pMarineViewer: the live operations map, served to a browser; also replays a pLogger .alog."""
+from __future__ import annotations
+
+import asyncio
+import bisect
+import signal
+import sys
+from pathlib import Path
+
+from moosdb_py.alog import AlogFormatError, iter_alog
+from moosdb_py.app import MOOSApp
+from moosdb_py.mission import read_mission
+from moosdb_py.source import MissionFileError
+from oilspill_moos.app_config import config_float, config_str, read_params, unhandled_entries
+from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.viewer.model import (
+    SUBSCRIPTIONS,
+    WILDCARDS,
+    Button,
+    Scene,
+    ViewError,
+    parse_button,
+)
+from oilspill_moos.viewer.server import MapServer
+
+BUTTON_KEYS = ("button_one", "button_two", "button_three", "button_four", "button_five", "button_six",
+               "button_seven", "button_eight", "button_nine", "button_ten")
+DEFAULT_BUTTON = "DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false"
+RETURN_BUTTON = "RETURN_ALL # RETURN_ALL=true"
+KNOWN = {"http_host", "http_port", "refresh_hz", "trail_length", "boundary_host", "boundary_port", *BUTTON_KEYS}
+
+
+def read_settings(config, mission) -> dict:
+    """The viewer's ProcessConfig; `boundary_port` defaults to pPathAssign's in the same mission file."""
+    path_assign = mission.process_config("pPathAssign") if mission is not None else None
+    assigned_port = path_assign.get("boundary_port") if path_assign is not None else None
+    buttons = []
+    for key in BUTTON_KEYS:
+        text = config.get(key)
+        if text:
+            try:
+                buttons.append(parse_button(text))
+            except ViewError as exc:
+                entry = config.entry(key) if hasattr(config, "entry") else None
+                raise (entry.source.error(str(exc)) if entry is not None else ValueError(f"{key}: {exc}")) from None
+    return {"http_host": config_str(config, "http_host", "127.0.0.1"),
+            "http_port": int(config_float(config, "http_port", 8080, lo=0, hi=65535)),
+            "refresh_hz": config_float(config, "refresh_hz", 10.0, lo=0.5, hi=60.0),
+            "trail_length": int(config_float(config, "trail_length", 200, lo=0, hi=100000)),
+            "boundary_host": config_str(config, "boundary_host", "127.0.0.1"),
+            "boundary_port": int(config_float(config, "boundary_port", float(assigned_port or BOUNDARY_PORT),
+                                              lo=1, hi=65535)),
+            "buttons": (buttons or [parse_button(DEFAULT_BUTTON)]) + [parse_button(RETURN_BUTTON)]}
+
+
+def mission_grid(mission) -> LocalGrid | None:
+    if mission is None or mission.lat_origin is None or mission.long_origin is None:
+        return None
+    return LocalGrid(mission.lat_origin, mission.long_origin)
+
+
+def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str) -> dict:
+    """What the page needs besides the picture: buttons, and a linear lat/long readout about the origin
+    (derivatives from pyproj over +-1 km: metre-accurate within a few km, which is where a spill is)."""
+    origin = None
+    if grid is not None:
+        lat0, lon0 = (float(v) for v in grid.to_latlon(0.0, 0.0))
+        lat_e, lon_e = (float(v) for v in grid.to_latlon(1000.0, 0.0))
+        lat_n, lon_n = (float(v) for v in grid.to_latlon(0.0, 1000.0))
+        origin = {"lat": lat0, "lon": lon0, "dlat_dx": (lat_e - lat0) / 1000, "dlon_dx": (lon_e - lon0) / 1000,
+                  "dlat_dy": (lat_n - lat0) / 1000, "dlon_dy": (lon_n - lon0) / 1000}
+    return {"mode": mode, "community": community, "origin": origin,
+            "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" else [])}
+
+
+class MarineViewer(MOOSApp):
+    """pMarineViewer: a web operations map of the shoreside community. Vehicles (NODE_REPORT) with
+    heading and trails, the spill boundary in force, each vehicle's start point and containment
+    loop, VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT markers, the phase of every vehicle and the
+    pPathAssign status line, served on http://127.0.0.1:<http_port>/ and pushed over a WebSocket.
+    Buttons poke the MOOSDB (stamped with the community's warped time), RETURN_ALL recalls the
+    fleet and RE-PUSH BOUNDARY sends the boundary in force to pPathAssign again.
+
+    Extra options:
+      --http_port=N     the page's port (overrides http_port; 0 picks a free one)
+      --replay=FILE     play a pLogger .alog back on the same page (time slider, speed); no MOOSDB
+    """
+
+    default_name = "pMarineViewer"
+    http_port_option: int | None = None
+    example_config = """\
+ProcessConfig = pMarineViewer
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  http_host     = 127.0.0.1   // where the page is served (loopback unless you mean it)
+  http_port     = 8080        // its port; 0 picks a free one (the URL is printed)
+  refresh_hz    = 10          // at most this many updates per wall second to each page
+  trail_length  = 200         // points of track drawn behind each vehicle
+  boundary_host = 127.0.0.1   // pPathAssign's boundary server, for RE-PUSH BOUNDARY
+  boundary_port = 9100        // default: pPathAssign's boundary_port in this file, else 9100
+
+  // Buttons, as in MOOS-IvP's pMarineViewer: LABEL # VAR=value # VAR=value ...
+  // (numbers are poked as doubles, "quoted" values as strings). Default when none is given:
+  button_one = DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false
+  // button_two ... button_ten likewise. RETURN_ALL (RETURN_ALL=true) and RE-PUSH BOUNDARY are always there.
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  NODE_REPORT                    vehicles: NAME, X, Y (or LAT/LON), HDG, SPD, MODE, COLOR, ...
+  VIEW_POLYGON, VIEW_SEGLIST, VIEW_POINT   markers (MOOS-IvP formats; active=false erases by label)
+  OILSPILL_BOUNDARY              the boundary in force (pPathAssign)
+  OILSPILL_PHASE, OILSPILL_PHASE_<V>       fleet phase and the phase asked of each vehicle
+  STARTING_POSITION_UPDATES_<V>  each vehicle's assigned start point
+  OIL_PATH_UPDATES_<V>           each vehicle's containment loop
+  OILSPILL_STATUS                pPathAssign's status line
+  OILSPILL_WARNING, OILSPILL_DROPPED, OILSPILL_REJOINED   shown in the page's log
+
+PUBLICATIONS:
+  the variables of the configured buttons, e.g. DEPLOY_ALL, MOOS_MANUAL_OVERRIDE_ALL, RETURN_ALL
+  RETURN_ALL                     true, from the RETURN_ALL button
+  (RE-PUSH BOUNDARY is a TCP line to pPathAssign, not a MOOS post)
+"""
+
+    def on_startup(self) -> None:
+        """Also called by run_async before the base does: the page server needs the settings first."""
+        if getattr(self, "scene", None) is not None:
+            return
+        self.settings = read_params(self.config, lambda cfg: read_settings(cfg, self.mission))
+        for warning in unhandled_entries(self.config, KNOWN):
+            print(f"{self.name}: {warning}", file=sys.stderr)
+        self.buttons: list[Button] = self.settings["buttons"]
+        self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
+        self.setup = page_setup(self.scene.grid, self.buttons, self.mission.community if self.mission else "", "live")
+
+    def on_connect(self) -> None:
+        for key in SUBSCRIPTIONS:
+            self.register(key)
+        for pattern in WILDCARDS:
+            self.register_wildcard(pattern)
+
+    def on_new_mail(self, mail) -> None:
+        for msg in mail:
+            try:
+                self.server.queue(self.scene.apply(msg.key, msg.value, msg.time, msg.community))
+            except ViewError as exc:
+                where = f"{msg.source or '?'}@{msg.community or '?'}"
+                self.server.queue([self.scene.note("error", f"{msg.key} from {where}: {exc}", msg.time)])
+
+    def snapshot(self) -> dict:
+        return {**self.setup, **self.scene.snapshot(), "time": self.moos_time()}
+
+    async def command(self, command: dict) -> None:
+        """A page pressed a button (by index: a page cannot poke anything that is not configured)."""
+        now = self.moos_time()
+        if command["cmd"] == "button":
+            index = command.get("index")
+            if isinstance(index, int) and 0 <= index < len(self.buttons):
+                button = self.buttons[index]
+                for key, value in button.pokes:
+                    self.notify(key, value, time=now)
+                pokes = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in button.pokes)
+                self.server.queue([self.scene.note("poke", f"{button.label}: {pokes}", now)])
+        elif command["cmd"] == "repush":
+            await self.repush()
+
+    async def repush(self) -> None:
+        """Send the boundary in force to pPathAssign again as a pts={} line, so the fleet re-plans."""
+        now = self.moos_time()
+        if not self.scene.boundary_text:
+            self.server.queue([self.scene.note("error", "RE-PUSH: no boundary in force yet", now)])
+            return
+        host, port = self.settings["boundary_host"], self.settings["boundary_port"]
+        pusher = BoundaryPusher(host, port, connect_timeout=2.0, reply_timeout=5.0)
+        try:
+            seq = await pusher.push(self.scene.boundary_text.strip() + "\n")
+            note = self.scene.note("poke", f"RE-PUSH: pPathAssign at {host}:{port} accepted it as boundary {seq}", now)
+        except (PushRejected, PushUnreachable, ValueError) as exc:
+            note = self.scene.note("error", f"RE-PUSH to {host}:{port}: {exc}", now)
+        finally:
+            await pusher.close()
+        self.server.queue([note])
+
+    async def run_async(self) -> None:
+        self.on_startup()
+        port = self.settings["http_port"] if self.http_port_option is None else self.http_port_option
+        self.server = MapServer(self.settings["http_host"], port, self.snapshot, self.command)
+        await self.server.start()
+        print(f"{self.name}: the map is at {self.server.url}", flush=True)
+        flusher = asyncio.create_task(self.server.flush_every(1.0 / self.settings["refresh_hz"],
+                                                              lambda: {"time": self.moos_time()}))
+        try:
+            await super().run_async()
+        finally:
+            flusher.cancel()
+            self.server.close()
+
+    @classmethod
+    def main(cls, argv: list[str] | None = None) -> int:
+        argv = sys.argv[1:] if argv is None else list(argv)
+        extra = {a.partition("=")[0]: a.partition("=")[2] for a in argv if a.startswith(("--http_port=", "--replay="))}
+        rest = [a for a in argv if not a.startswith(("--http_port=", "--replay="))]
+        pages = {"--help", "-h", "--example", "-e", "--interface", "-i"}
+        try:
+            port = int(extra["--http_port"]) if "--http_port" in extra else None
+        except ValueError:
+            print(f"{cls.default_name}: --http_port={extra['--http_port']} is not a port number", file=sys.stderr)
+            return 1
+        if "--replay" in extra and not pages & set(rest):
+            return replay_main(Path(extra["--replay"]), rest, port)
+        app_class = cls if port is None else type(cls.__name__, (cls,), {"http_port_option": port})
+        return MOOSApp.main.__func__(app_class, rest)
+
+
+class Replay:
+    """An alog played into a Scene on a clock the page controls (play, pause, speed, seek)."""
+
+    def __init__(self, path: Path, trail_length: int = 200, grid=None):
+        self.path = Path(path)
+        self.trail_length, self.grid = trail_length, grid
+        wanted = set(SUBSCRIPTIONS)
+        prefixes = tuple(p.rstrip("*") for p in WILDCARDS)
+        self.entries = [e for e in iter_alog(self.path) if not isinstance(e, float)
+                        and (e.key in wanted or e.key.startswith(prefixes))]
+        self.times = [e.time for e in self.entries]
+        self.end = self.times[-1] if self.times else 0.0
+        self.t, self.speed, self.playing = 0.0, 1.0, True
+        self.scene, self.applied = self._fresh(), 0
+
+    def _fresh(self) -> Scene:
+        return Scene(trail_length=self.trail_length, grid=self.grid)
+
+    def clock(self) -> dict:
+        return {"time": self.t, "replay": {"start": 0.0, "end": self.end, "t": self.t, "speed": self.speed,
+                                           "playing": self.playing, "file": self.path.name}}
+
+    def advance(self, wall_dt: float) -> list[dict]:
+        """Move the clock on by `wall_dt` x speed (when playing); the updates of the entries passed."""
+        if self.playing:
+            self.t = min(self.end, self.t + wall_dt * self.speed)
+            self.playing = self.t < self.end
+        return self._apply_until(self.t)
+
+    def seek(self, t: float) -> None:
+        """Jump anywhere; going back rebuilds the picture from the start of the log."""
+        t = min(max(0.0, float(t)), self.end)
+        if t < self.t:
+            self.scene, self.applied = self._fresh(), 0
+        self.t = t
+        self._apply_until(t)
+
+    def _apply_until(self, t: float) -> list[dict]:
+        stop = bisect.bisect_right(self.times, t)
+        updates = []
+        for entry in self.entries[self.applied:stop]:
+            try:
+                updates += self.scene.apply(entry.key, entry.value, entry.time, entry.community)
+            except ViewError as exc:
+                updates.append(self.scene.note("error", f"{self.path.name}:{entry.line}: {exc}", entry.time))
+        self.applied = max(self.applied, stop)
+        return updates
+
+
+async def serve_replay(replay: Replay, host: str, port: int, refresh_hz: float, setup: dict,
+                       ready: asyncio.Future | None = None, stop: asyncio.Event | None = None) -> None:
+    """Serve `replay` until `stop` is set (`ready` gets the port once the page can be loaded);
+    the page's play/pause/speed/seek commands steer the replay clock."""
+    stop = stop or asyncio.Event()
+
+    async def command(cmd: dict) -> None:
+        if cmd["cmd"] == "seek" and isinstance(cmd.get("t"), (int, float)):
+            replay.seek(cmd["t"])
+            server.resend_snapshot()
+        elif cmd["cmd"] == "play":
+            replay.playing = True
+            if replay.t >= replay.end:
+                replay.seek(0.0)
+                server.resend_snapshot()
+        elif cmd["cmd"] == "pause":
+            replay.playing = False
+        elif cmd["cmd"] == "speed" and isinstance(cmd.get("speed"), (int, float)) and 0 < cmd["speed"] <= 1000:
+            replay.speed = float(cmd["speed"])
+
+    server = MapServer(host, port, lambda: {**setup, **replay.scene.snapshot(), **replay.clock()}, command)
+    await server.start()
+    print(f"pMarineViewer: replaying {replay.path} at {server.url}", flush=True)
+    if ready is not None:
+        ready.set_result(server.port)
+    period = 1.0 / refresh_hz
+    loop = asyncio.get_running_loop()
+    last = loop.time()
+    try:
+        while not stop.is_set():
+            now = loop.time()
+            server.queue(replay.advance(now - last))
+            last = now
+            server.flush(replay.clock())
+            try:
+                await asyncio.wait_for(stop.wait(), period)
+            except TimeoutError:
+                pass
+    finally:
+        server.close()
+
+
+def replay_main(alog: Path, rest: list[str], port: int | None) -> int:
+    """`pMarineViewer [mission.moos] --replay=FILE.alog [--http_port=N]`: the mission file (optional)
+    gives the viewer's settings and LatOrigin/LongOrigin."""
+    positional = [a for a in rest if not a.startswith("-")]
+    try:
+        if len(positional) > 1 or len(positional) < len(rest):
+            raise ValueError(f"with --replay only a mission file may be given, not {rest}")
+        mission = read_mission(positional[0]) if positional else None
+        block = mission.process_config(MarineViewer.default_name) if mission is not None else None
+        settings = read_settings(block if block is not None else {}, mission)
+        grid = mission_grid(mission)
+        replay = Replay(alog, settings["trail_length"], grid)
+    except (MissionFileError, AlogFormatError, ValueError, OSError) as exc:
+        print(f"pMarineViewer: {exc}", file=sys.stderr)
+        return 1
+    setup = page_setup(grid, [], mission.community if mission else "", "replay")
+
+    async def runner():
+        stop = asyncio.Event()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            asyncio.get_running_loop().add_signal_handler(sig, stop.set)
+        await serve_replay(replay, settings["http_host"], settings["http_port"] if port is None else port,
+                           settings["refresh_hz"], setup, stop=stop)
+
+    try:
+        asyncio.run(runner())
+    except OSError as exc:
+        print(f"pMarineViewer: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+main = MarineViewer.main

@@ -1,0 +1,282 @@
+"""What the operations map shows, as plain data: MOOS strings in, JSON-ready updates out.
+
+Pure (no sockets, no clocks): `Scene.apply(key, value, ...)` turns one piece of shoreside mail
+into the updates the page needs, and `Scene.snapshot()` is everything a newly opened page needs.
+The live app and the alog replay feed the same Scene, so the page cannot tell them apart.
+Formats: NODE_REPORT from field-apps.md §3.3, VIEW_* and geometry strings from ivp-helm.md §5.7,
+§6.5 and §8.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
+from oilspill_moos.app_config import parse_float
+from oilspill_moos.path_assign import parse_report
+
+VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
+# Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).
+SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_STATUS", "OILSPILL_WARNING",
+                 "OILSPILL_DROPPED", "OILSPILL_REJOINED")
+WILDCARDS = ("OILSPILL_PHASE*", "STARTING_POSITION_UPDATES_*", "OIL_PATH_UPDATES_*")
+NOTE_KEYS = {"OILSPILL_WARNING": "warning", "OILSPILL_DROPPED": "dropped", "OILSPILL_REJOINED": "rejoined"}
+
+
+class ViewError(ValueError):
+    """A NODE_REPORT, VIEW_* or update string the map cannot draw; the message quotes it."""
+
+
+@dataclass(frozen=True)
+class NodeReport:
+    name: str
+    x: float
+    y: float
+    heading: float = 0.0
+    speed: float = 0.0
+    mode: str = ""
+    type: str = ""
+    color: str = ""
+    length: float = 0.0
+    time: float | None = None
+
+    @property
+    def phase(self) -> str:
+        """The helm's leaf mode: `MODE@ACTIVE:OIL-PATH` -> `OIL-PATH`, `MODE@INACTIVE` -> `INACTIVE`."""
+        return self.mode.rpartition("@")[2].rpartition(":")[2] or self.mode
+
+
+def _finite(fields: dict[str, str], key: str, text: str, default: float | None = None) -> float:
+    raw = fields.get(key)
+    if raw is None:
+        if default is None:
+            raise ViewError(f"NODE_REPORT without {key.upper()}: {text!r}")
+        return default
+    try:
+        return parse_float(raw, f"NODE_REPORT {key.upper()}")
+    except ValueError as exc:
+        raise ViewError(f"{exc}: {text!r}") from None
+
+
+def parse_node_report(text: str, grid=None) -> NodeReport:
+    """A NODE_REPORT (keys in any case, LONG as well as LON); a report with only LAT/LON is placed
+    with `grid` (the mission's LocalGrid), as with `coord_policy_global`."""
+    fields = parse_report(text)
+    name = fields.get("name", "")
+    if not name:
+        raise ViewError(f"NODE_REPORT without NAME: {text!r}")
+    if "lon" not in fields and "long" in fields:
+        fields["lon"] = fields["long"]
+    if ("x" not in fields or "y" not in fields) and grid is not None and "lat" in fields and "lon" in fields:
+        x, y = grid.to_local(_finite(fields, "lat", text), _finite(fields, "lon", text))
+        fields["x"], fields["y"] = str(float(x)), str(float(y))
+    time = _finite(fields, "time", text, default=math.nan)
+    return NodeReport(name=name, x=_finite(fields, "x", text), y=_finite(fields, "y", text),
+                      heading=_finite(fields, "hdg", text, 0.0) % 360.0, speed=_finite(fields, "spd", text, 0.0),
+                      mode=fields.get("mode", ""), type=fields.get("type", ""), color=fields.get("color", ""),
+                      length=_finite(fields, "length", text, 0.0), time=None if math.isnan(time) else time)
+
+
+def _properties(text: str) -> dict[str, str]:
+    """The `key=value` items of a VIEW_* string outside its `pts={...}` braces (keys lower-cased)."""
+    start = text.lower().find("pts={")
+    if start >= 0:
+        end = text.find("}", start)
+        text = text[:start] + (text[end + 1:] if end >= 0 else "")
+    for prefix in ("radial::", "format=radial"):
+        if text.lower().lstrip().startswith(prefix):
+            text = text.lstrip()[len(prefix):]
+    props = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        if sep and key.strip():
+            props[key.strip().lower()] = value.strip()
+    return props
+
+
+@dataclass(frozen=True)
+class Marker:
+    """One VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT: drawn while active, erased by label."""
+
+    kind: str
+    label: str
+    points: tuple[tuple[float, float], ...]
+    active: bool = True
+    style: tuple[tuple[str, str], ...] = ()   # edge_color, vertex_size, ... as posted
+
+    def as_update(self) -> dict:
+        return {"t": "marker", "kind": self.kind, "label": self.label, "active": self.active,
+                "points": [list(p) for p in self.points], "style": dict(self.style)}
+
+
+def parse_view(key: str, text: str) -> Marker:
+    """A VIEW_POLYGON (point list or radial form), VIEW_SEGLIST or VIEW_POINT string.
+
+    An inactive marker may come without geometry: it only names what to erase."""
+    kind = VIEW_KINDS.get(key)
+    if kind is None:
+        raise ViewError(f"{key} is not a VIEW_POLYGON, VIEW_SEGLIST or VIEW_POINT")
+    props = _properties(text)
+    active = props.pop("active", "true").lower() != "false"
+    label = props.pop("label", "")
+    try:
+        if kind == "point":
+            points = [parse_point(text)]
+        elif kind == "polygon" and "pts={" not in text.replace(" ", "").lower():
+            points = parse_polygon(text).tolist()   # radial forms (always convex); spills are point lists
+        else:
+            points = parse_seglist(text).tolist()
+    except GeometryError as exc:
+        if active:
+            raise ViewError(f"{key} {text!r}: {exc}") from None
+        points = []
+    for name in ("x", "y", "pts", "radius", "snap", "format"):
+        props.pop(name, None)
+    return Marker(kind, label or f"{kind}-{text.strip()[:40]}", tuple(map(tuple, points)), active,
+                  tuple(sorted(props.items())))
+
+
+def _points_update(text: str, what: str) -> list[list[float]]:
+    """`points=x,y:x,y[#repeat=forever#...]` (pPathAssign's STARTING_POSITION / OIL_PATH updates)."""
+    body = text.split("#")[0].strip()
+    key, sep, value = body.partition("=")
+    if not sep or key.strip().lower() != "points":
+        raise ViewError(f"{what} {text!r}: expected points=x,y:...")
+    try:
+        return parse_seglist(value).tolist()
+    except GeometryError as exc:
+        raise ViewError(f"{what} {text!r}: {exc}") from None
+
+
+def _suffix(key: str, prefix: str) -> str:
+    return key[len(prefix):].lstrip("_").lower()
+
+
+@dataclass(frozen=True)
+class Button:
+    """A pMarineViewer button: `button_one = DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false`."""
+
+    label: str
+    pokes: tuple[tuple[str, float | str], ...]
+
+
+def parse_button(text: str) -> Button:
+    """Numbers are poked as doubles, anything else (or a quoted number) as a string, as pMarineViewer does."""
+    label, *assignments = (part.strip() for part in text.split("#"))
+    if not label or "=" in label:
+        raise ViewError(f"button {text!r}: expected LABEL # VAR=value # ...")
+    pokes = []
+    for item in assignments:
+        key, sep, raw = item.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not sep or not key or " " in key:
+            raise ViewError(f"button {text!r}: {item!r} is not VAR=value")
+        if len(raw) >= 2 and raw[0] == raw[-1] == '"':
+            value: float | str = raw[1:-1]
+        else:
+            try:
+                value = float(raw)
+            except ValueError:
+                value = raw
+            if isinstance(value, float) and not math.isfinite(value):
+                value = raw
+        pokes.append((key, value))
+    if not pokes:
+        raise ViewError(f"button {text!r}: no VAR=value to poke")
+    return Button(label, tuple(pokes))
+
+
+@dataclass
+class Vehicle:
+    report: NodeReport
+    seen: float                                  # MOOS time of the last report
+    trail: deque = field(default_factory=deque)  # (x, y) pairs, oldest first
+
+    def as_update(self) -> dict:
+        r = self.report
+        return {"t": "vehicle", "name": r.name, "x": r.x, "y": r.y, "hdg": r.heading, "spd": r.speed,
+                "mode": r.mode, "phase": r.phase, "type": r.type, "color": r.color, "len": r.length,
+                "seen": self.seen}
+
+
+@dataclass
+class Scene:
+    """The operations picture of one shoreside community."""
+
+    trail_length: int = 200
+    grid: object | None = None                   # LocalGrid for LAT/LON-only reports
+    vehicles: dict[str, Vehicle] = field(default_factory=dict)
+    markers: dict[tuple[str, str], Marker] = field(default_factory=dict)
+    boundary: list[list[float]] | None = None
+    boundary_text: str = ""
+    starts: dict[str, list[float]] = field(default_factory=dict)
+    loops: dict[str, list[list[float]]] = field(default_factory=dict)
+    phase: str = ""
+    commanded: dict[str, str] = field(default_factory=dict)   # OILSPILL_PHASE_<V>: what the shore asked
+    status: str = ""
+    notes: deque = field(default_factory=lambda: deque(maxlen=50))
+
+    def apply(self, key: str, value, time: float, community: str = "") -> list[dict]:
+        """One piece of mail -> the page updates it causes; raises ViewError on a string it cannot read."""
+        text = value if isinstance(value, str) else f"{value:g}" if isinstance(value, float) else str(value)
+        if key == "NODE_REPORT":
+            return [self._report(parse_node_report(text, self.grid), time)]
+        if key in VIEW_KINDS:
+            marker = parse_view(key, text)
+            if marker.active:
+                self.markers[(marker.kind, marker.label)] = marker
+            else:
+                self.markers.pop((marker.kind, marker.label), None)
+            return [marker.as_update()]
+        if key == "OILSPILL_BOUNDARY":
+            try:
+                self.boundary = parse_seglist(text).tolist()
+            except GeometryError as exc:
+                raise ViewError(f"OILSPILL_BOUNDARY {text!r}: {exc}") from None
+            self.boundary_text = text
+            return [{"t": "boundary", "points": self.boundary, "label": _properties(text).get("label", "")}]
+        if key == "OILSPILL_PHASE":
+            self.phase = text
+            return [{"t": "phase", "phase": text}]
+        if key.startswith("OILSPILL_PHASE_"):
+            name = _suffix(key, "OILSPILL_PHASE")
+            names = list(self.vehicles) if name == "all" else [name]
+            self.commanded.update(dict.fromkeys(names, text))
+            return [{"t": "commanded", "name": n, "phase": text} for n in names]
+        if key.startswith("STARTING_POSITION_UPDATES"):
+            name = _suffix(key, "STARTING_POSITION_UPDATES")
+            self.starts[name] = _points_update(text, key)[0]
+            return [{"t": "start", "name": name, "point": self.starts[name]}]
+        if key.startswith("OIL_PATH_UPDATES"):
+            name = _suffix(key, "OIL_PATH_UPDATES")
+            self.loops[name] = _points_update(text, key)
+            return [{"t": "loop", "name": name, "points": self.loops[name]}]
+        if key == "OILSPILL_STATUS":
+            self.status = text
+            return [{"t": "status", "text": text}]
+        if key in NOTE_KEYS:
+            return [self.note(NOTE_KEYS[key], text, time)]
+        return []
+
+    def note(self, level: str, text: str, time: float) -> dict:
+        """A line for the page's log (warnings, dropped vehicles, refused mail, button presses)."""
+        entry = {"t": "note", "level": level, "text": text, "time": time}
+        self.notes.append(entry)
+        return entry
+
+    def _report(self, report: NodeReport, time: float) -> dict:
+        vehicle = self.vehicles.get(report.name.lower())
+        if vehicle is None:
+            vehicle = self.vehicles[report.name.lower()] = Vehicle(report, time, deque(maxlen=self.trail_length))
+        vehicle.report, vehicle.seen = report, time
+        vehicle.trail.append((report.x, report.y))
+        return vehicle.as_update()
+
+    def snapshot(self) -> dict:
+        """Everything a page needs to draw the picture from scratch."""
+        return {"vehicles": [{**v.as_update(), "trail": [list(p) for p in v.trail]} for v in self.vehicles.values()],
+                "markers": [m.as_update() for m in self.markers.values()],
+                "boundary": self.boundary, "starts": self.starts, "loops": self.loops, "phase": self.phase,
+                "commanded": self.commanded, "status": self.status, "notes": list(self.notes),
+                "trail_length": self.trail_length}

@@ -1,0 +1,419 @@
+// pMarineViewer page: draws what the server pushes (snapshot, then batches of updates) on a canvas
+// in local x/y metres (+x east, +y north), and sends button presses / replay controls back.
+"use strict";
+
+const STALE_SECONDS = 10;          // MOOS seconds without a NODE_REPORT before a vehicle is greyed
+const PALETTE = ["#ffd23f", "#ff6b6b", "#4ecdc4", "#c77dff", "#ff9f1c", "#9ef01a", "#48bfe3", "#f15bb5"];
+
+const state = {
+  setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, starts: {}, loops: {},
+  phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
+};
+const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels per metre
+const stats = { messages: 0, updates: 0, frames: 0, frameMs: [], connectedAt: 0 };
+window.viewerStats = stats;
+window.viewerState = state;
+
+const canvas = document.getElementById("map");
+const ctx = canvas.getContext("2d");
+let socket = null;
+let dirty = true;
+
+// ---- connection ---------------------------------------------------------------------------------
+
+function connect() {
+  const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws";
+  socket = new WebSocket(url);
+  socket.onopen = () => { setLink(true); stats.connectedAt = performance.now(); };
+  socket.onclose = () => { setLink(false); setTimeout(connect, 1000); };
+  socket.onmessage = (event) => {
+    stats.messages += 1;
+    const msg = JSON.parse(event.data);
+    if (msg.type === "snapshot") loadSnapshot(msg);
+    else if (msg.type === "batch") applyBatch(msg);
+    dirty = true;
+  };
+}
+
+function send(command) {
+  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(command));
+}
+
+function setLink(up) {
+  document.getElementById("link-dot").className = up ? "" : "down";
+  document.getElementById("link-text").textContent = up ? "live" : "disconnected — retrying";
+}
+
+// ---- the picture ----------------------------------------------------------------------------------
+
+function loadSnapshot(msg) {
+  const first = state.setup === null || state.setup.mode !== msg.mode;
+  state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons };
+  state.vehicles.clear();
+  state.markers.clear();
+  state.trailLength = msg.trail_length;
+  for (const v of msg.vehicles) state.vehicles.set(v.name.toLowerCase(), { ...v, trail: v.trail });
+  for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
+  Object.assign(state, { boundary: msg.boundary, starts: msg.starts, loops: msg.loops, phase: msg.phase,
+    commanded: msg.commanded, status: msg.status, time: msg.time });
+  if (first) buildControls();
+  document.getElementById("log").replaceChildren();
+  for (const note of msg.notes) addNote(note);
+  setReplay(msg.replay || null);
+  refreshPanel();
+  if (!view.userMoved) fit();
+}
+
+function applyBatch(msg) {
+  state.time = msg.time;
+  if (msg.replay) setReplay(msg.replay);
+  for (const u of msg.updates) apply(u);
+  stats.updates += msg.updates.length;
+  refreshPanel();
+  if (!view.userMoved && msg.updates.length) fit();
+}
+
+function apply(u) {
+  switch (u.t) {
+    case "vehicle": {
+      const key = u.name.toLowerCase();
+      const old = state.vehicles.get(key);
+      const trail = old ? old.trail : [];
+      trail.push([u.x, u.y]);
+      if (trail.length > state.trailLength) trail.splice(0, trail.length - state.trailLength);
+      state.vehicles.set(key, { ...u, trail });
+      break;
+    }
+    case "marker":
+      if (u.active) state.markers.set(u.kind + "/" + u.label, u);
+      else state.markers.delete(u.kind + "/" + u.label);
+      break;
+    case "boundary": state.boundary = u.points; break;
+    case "phase": state.phase = u.phase; break;
+    case "commanded": state.commanded[u.name] = u.phase; break;
+    case "start": state.starts[u.name] = u.point; break;
+    case "loop": state.loops[u.name] = u.points; break;
+    case "status": state.status = u.text; break;
+    case "note": addNote(u); break;
+  }
+}
+
+// ---- panel ----------------------------------------------------------------------------------------
+
+function buildControls() {
+  const box = document.getElementById("buttons");
+  box.replaceChildren();
+  state.setup.buttons.forEach((label, index) => {
+    const b = document.createElement("button");
+    b.textContent = label;
+    b.dataset.label = label;
+    if (label === "RETURN_ALL") b.className = "return";
+    if (label === "RE-PUSH BOUNDARY") {
+      b.className = "repush";
+      b.onclick = () => send({ cmd: "repush" });
+    } else {
+      b.onclick = () => send({ cmd: "button", index });
+    }
+    box.appendChild(b);
+  });
+  document.getElementById("controls").hidden = state.setup.buttons.length === 0;
+  document.getElementById("community").textContent = state.setup.community
+    ? "community " + state.setup.community : "";
+}
+
+function vehicleColor(v, index) {
+  return cssColor(v.color) || PALETTE[index % PALETTE.length];
+}
+
+function refreshPanel() {
+  const replaying = state.setup && state.setup.mode === "replay";
+  document.getElementById("clock").textContent = (replaying ? "log time " : "MOOS time ") + clockText(state.time);
+  const phase = document.getElementById("phase");
+  phase.textContent = state.phase || "—";
+  phase.className = "phase-tag ph-" + (state.phase || "none");
+  document.getElementById("status").textContent = state.status || "no status yet";
+  const body = document.querySelector("#vehicles tbody");
+  const rows = [];
+  [...state.vehicles.values()].forEach((v, i) => {
+    const tr = document.createElement("tr");
+    const age = Math.max(0, state.time - v.seen);
+    tr.dataset.name = v.name.toLowerCase();
+    tr.className = age > STALE_SECONDS ? "stale" : "";
+    const commanded = state.commanded[v.name.toLowerCase()];
+    tr.innerHTML = `<td><span class="swatch"></span><span class="name"></span></td>` +
+      `<td class="phase"></td><td class="num">${v.spd.toFixed(1)}</td><td class="num">${v.hdg.toFixed(0)}</td>` +
+      `<td class="num">${age.toFixed(0)}s</td>`;
+    tr.querySelector(".swatch").style.background = vehicleColor(v, i);
+    tr.querySelector(".name").textContent = v.name;
+    const cell = tr.querySelector(".phase");
+    cell.textContent = v.phase || "?";
+    cell.className = "phase ph-" + v.phase;
+    cell.title = "mode " + v.mode + (commanded ? "; shore asks " + commanded : "");
+    rows.push(tr);
+  });
+  body.replaceChildren(...rows);
+}
+
+// MOOS time is (warped) UTC seconds; a replayed log counts from its start.
+function clockText(t) {
+  return t > 1e8 ? new Date(t * 1000).toISOString().substring(11, 19) + " UTC" : t.toFixed(1) + " s";
+}
+
+function addNote(note) {
+  const log = document.getElementById("log");
+  const li = document.createElement("li");
+  li.className = note.level;
+  li.textContent = `${clockText(note.time)}  ${note.text}`;
+  log.prepend(li);
+  while (log.children.length > 50) log.lastChild.remove();
+}
+
+// ---- replay controls --------------------------------------------------------------------------------
+
+let sliderHeld = false;
+function setReplay(replay) {
+  state.replay = replay;
+  const bar = document.getElementById("replay-bar");
+  bar.hidden = !replay;
+  if (!replay) return;
+  const slider = document.getElementById("slider");
+  slider.max = replay.end;
+  if (!sliderHeld) slider.value = replay.t;
+  document.getElementById("replay-time").textContent = `${replay.t.toFixed(1)} / ${replay.end.toFixed(1)} s`;
+  document.getElementById("play").textContent = replay.playing ? "❚❚" : "▶";
+}
+
+document.getElementById("play").onclick = () => send({ cmd: state.replay && state.replay.playing ? "pause" : "play" });
+document.getElementById("speed").onchange = (e) => send({ cmd: "speed", speed: Number(e.target.value) });
+const sliderEl = document.getElementById("slider");
+sliderEl.oninput = () => { sliderHeld = true; };
+sliderEl.onchange = () => { sliderHeld = false; send({ cmd: "seek", t: Number(sliderEl.value) }); };
+
+// ---- drawing --------------------------------------------------------------------------------------
+
+const colorCache = new Map();
+function cssColor(name) {
+  if (!name) return null;
+  if (colorCache.has(name)) return colorCache.get(name);
+  const css = name.toLowerCase().replace(/_/g, "");
+  ctx.fillStyle = "#010203";
+  ctx.fillStyle = css;
+  const ok = ctx.fillStyle !== "#010203" ? css : null;
+  colorCache.set(name, ok);
+  return ok;
+}
+
+function toScreen(x, y) {
+  return [canvas.width / 2 + (x - view.cx) * view.scale, canvas.height / 2 - (y - view.cy) * view.scale];
+}
+function toWorld(px, py) {
+  return [view.cx + (px - canvas.width / 2) / view.scale, view.cy - (py - canvas.height / 2) / view.scale];
+}
+
+function path(points, close) {
+  ctx.beginPath();
+  points.forEach(([x, y], i) => { const [sx, sy] = toScreen(x, y); if (i) ctx.lineTo(sx, sy); else ctx.moveTo(sx, sy); });
+  if (close) ctx.closePath();
+}
+
+function niceStep(metres) {
+  const p = Math.pow(10, Math.floor(Math.log10(metres)));
+  for (const m of [1, 2, 5, 10]) if (m * p >= metres) return m * p;
+  return 10 * p;
+}
+
+function drawGrid() {
+  const step = niceStep(90 / view.scale);
+  const [x0, y1] = toWorld(0, 0), [x1, y0] = toWorld(canvas.width, canvas.height);
+  ctx.strokeStyle = "rgba(120, 160, 200, 0.12)";
+  ctx.lineWidth = 1;
+  ctx.beginPath();
+  for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
+    const [sx] = toScreen(x, 0); ctx.moveTo(sx, 0); ctx.lineTo(sx, canvas.height);
+  }
+  for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) {
+    const [, sy] = toScreen(0, y); ctx.moveTo(0, sy); ctx.lineTo(canvas.width, sy);
+  }
+  ctx.stroke();
+  const [ox, oy] = toScreen(0, 0);
+  ctx.strokeStyle = "rgba(200, 220, 255, 0.35)";
+  ctx.beginPath(); ctx.moveTo(ox - 8, oy); ctx.lineTo(ox + 8, oy); ctx.moveTo(ox, oy - 8); ctx.lineTo(ox, oy + 8); ctx.stroke();
+}
+
+function drawScaleBar() {
+  const metres = niceStep(120 / view.scale);
+  const px = metres * view.scale, x = 14, y = canvas.height - 18;
+  ctx.fillStyle = "rgba(13, 27, 42, 0.8)";
+  ctx.fillRect(x - 6, y - 20, px + 12, 28);
+  ctx.strokeStyle = "#e0e6ee"; ctx.lineWidth = 2;
+  ctx.beginPath(); ctx.moveTo(x, y - 5); ctx.lineTo(x, y); ctx.lineTo(x + px, y); ctx.lineTo(x + px, y - 5); ctx.stroke();
+  ctx.fillStyle = "#e0e6ee"; ctx.font = "11px system-ui, sans-serif";
+  ctx.fillText(metres >= 1000 ? `${metres / 1000} km` : `${metres} m`, x + 2, y - 8);
+}
+
+function drawBoundary() {
+  if (!state.boundary || state.boundary.length < 3) return;
+  path(state.boundary, true);
+  ctx.fillStyle = "rgba(30, 22, 12, 0.72)";
+  ctx.fill();
+  ctx.strokeStyle = "#c98b2b"; ctx.lineWidth = 2; ctx.stroke();
+  const [lx, ly] = toScreen(...state.boundary[0]);
+  ctx.fillStyle = "#e8b25a"; ctx.font = "11px system-ui, sans-serif";
+  ctx.fillText("spill boundary", lx + 4, ly - 4);
+}
+
+function drawMarkers() {
+  for (const m of state.markers.values()) {
+    const style = m.style || {};
+    const edge = cssColor(style.edge_color) || (m.kind === "polygon" ? "#ffa94d" : "#b0c4de");
+    if (m.kind === "point") {
+      const [sx, sy] = toScreen(...m.points[0]);
+      const r = Math.max(2, Number(style.vertex_size) || 4);
+      ctx.fillStyle = cssColor(style.vertex_color) || "#ffe066";
+      ctx.beginPath(); ctx.arc(sx, sy, r, 0, 2 * Math.PI); ctx.fill();
+      ctx.fillStyle = "#cfd8e3"; ctx.font = "10px system-ui, sans-serif";
+      ctx.fillText(m.label, sx + r + 3, sy + 3);
+      continue;
+    }
+    if (m.points.length < 2) continue;
+    path(m.points, m.kind === "polygon");
+    ctx.strokeStyle = edge; ctx.lineWidth = Math.max(1, Number(style.edge_size) || 1.5);
+    ctx.setLineDash(m.kind === "polygon" ? [6, 4] : []);
+    ctx.stroke();
+    ctx.setLineDash([]);
+  }
+}
+
+function drawPlans(colors) {
+  for (const [name, points] of Object.entries(state.loops)) {
+    if (points.length < 2) continue;
+    path(points, true);
+    ctx.strokeStyle = colors.get(name) || "#9fb3c8"; ctx.globalAlpha = 0.55; ctx.lineWidth = 1.5;
+    ctx.setLineDash([3, 3]); ctx.stroke(); ctx.setLineDash([]); ctx.globalAlpha = 1;
+  }
+  for (const [name, point] of Object.entries(state.starts)) {
+    const [sx, sy] = toScreen(...point);
+    ctx.fillStyle = colors.get(name) || "#fff";
+    star(sx, sy, 7);
+    ctx.strokeStyle = "#0d1b2a"; ctx.lineWidth = 1; ctx.stroke();
+  }
+}
+
+function star(x, y, r) {
+  ctx.beginPath();
+  for (let i = 0; i < 10; i++) {
+    const a = Math.PI / 5 * i - Math.PI / 2, rr = i % 2 ? r * 0.45 : r;
+    ctx.lineTo(x + rr * Math.cos(a), y + rr * Math.sin(a));
+  }
+  ctx.closePath(); ctx.fill();
+}
+
+function drawVehicles(colors) {
+  const showTrails = document.getElementById("show-trails").checked;
+  for (const v of state.vehicles.values()) {
+    const color = colors.get(v.name.toLowerCase());
+    const stale = state.time - v.seen > STALE_SECONDS;
+    if (showTrails && v.trail.length > 1) {
+      path(v.trail, false);
+      ctx.strokeStyle = color; ctx.globalAlpha = 0.5; ctx.lineWidth = 1.2; ctx.stroke(); ctx.globalAlpha = 1;
+    }
+    const [sx, sy] = toScreen(v.x, v.y);
+    const size = Math.max(9, (v.len || 4) * view.scale);
+    ctx.save();
+    ctx.translate(sx, sy);
+    ctx.rotate(v.hdg * Math.PI / 180);
+    ctx.beginPath();
+    ctx.moveTo(0, -size); ctx.lineTo(size * 0.5, size * 0.6); ctx.lineTo(0, size * 0.3); ctx.lineTo(-size * 0.5, size * 0.6);
+    ctx.closePath();
+    if (stale) { ctx.strokeStyle = "#6b7f94"; ctx.lineWidth = 1.5; ctx.stroke(); }
+    else { ctx.fillStyle = color; ctx.fill(); ctx.strokeStyle = "#0d1b2a"; ctx.lineWidth = 1; ctx.stroke(); }
+    ctx.restore();
+    ctx.fillStyle = stale ? "#6b7f94" : "#e0e6ee"; ctx.font = "11px system-ui, sans-serif";
+    ctx.fillText(`${v.name} ${v.phase || ""}`, sx + size * 0.7 + 3, sy - 4);
+  }
+}
+
+function draw() {
+  const started = performance.now();
+  ctx.fillStyle = "#0b2239";
+  ctx.fillRect(0, 0, canvas.width, canvas.height);
+  drawGrid();
+  drawBoundary();
+  const colors = new Map();
+  [...state.vehicles.values()].forEach((v, i) => colors.set(v.name.toLowerCase(), vehicleColor(v, i)));
+  if (document.getElementById("show-markers").checked) drawMarkers();
+  drawPlans(colors);
+  drawVehicles(colors);
+  drawScaleBar();
+  stats.frames += 1;
+  stats.frameMs.push(performance.now() - started);
+  if (stats.frameMs.length > 600) stats.frameMs.shift();
+}
+
+function frame() {
+  if (dirty) { dirty = false; draw(); }
+  requestAnimationFrame(frame);
+}
+
+// ---- view: fit, pan, zoom, readout --------------------------------------------------------------------
+
+function extent() {
+  const pts = [];
+  for (const v of state.vehicles.values()) pts.push([v.x, v.y]);
+  if (state.boundary) pts.push(...state.boundary);
+  for (const p of Object.values(state.starts)) pts.push(p);
+  for (const l of Object.values(state.loops)) pts.push(...l);
+  return pts;
+}
+
+function fit() {
+  const pts = extent();
+  if (!pts.length) return;
+  const xs = pts.map((p) => p[0]), ys = pts.map((p) => p[1]);
+  const [x0, x1, y0, y1] = [Math.min(...xs), Math.max(...xs), Math.min(...ys), Math.max(...ys)];
+  view.cx = (x0 + x1) / 2; view.cy = (y0 + y1) / 2;
+  view.scale = Math.min(canvas.width / Math.max(x1 - x0 + 80, 80), canvas.height / Math.max(y1 - y0 + 80, 80)) * 0.85;
+  dirty = true;
+}
+
+function resize() {
+  const rect = canvas.getBoundingClientRect();
+  canvas.width = Math.max(100, Math.floor(rect.width));
+  canvas.height = Math.max(100, Math.floor(rect.height));
+  dirty = true;
+}
+
+let drag = null;
+canvas.addEventListener("mousedown", (e) => { drag = [e.clientX, e.clientY]; canvas.classList.add("dragging"); });
+window.addEventListener("mouseup", () => { drag = null; canvas.classList.remove("dragging"); });
+canvas.addEventListener("mousemove", (e) => {
+  const rect = canvas.getBoundingClientRect();
+  const [x, y] = toWorld(e.clientX - rect.left, e.clientY - rect.top);
+  document.getElementById("cursor-xy").textContent = `x ${x.toFixed(1)} m, y ${y.toFixed(1)} m`;
+  const o = state.setup && state.setup.origin;
+  document.getElementById("cursor-ll").textContent = o
+    ? `lat ${(o.lat + o.dlat_dx * x + o.dlat_dy * y).toFixed(6)}, lon ${(o.lon + o.dlon_dx * x + o.dlon_dy * y).toFixed(6)}` : "";
+  if (drag) {
+    view.cx -= (e.clientX - drag[0]) / view.scale;
+    view.cy += (e.clientY - drag[1]) / view.scale;
+    drag = [e.clientX, e.clientY];
+    view.userMoved = true; dirty = true;
+  }
+});
+canvas.addEventListener("wheel", (e) => {
+  e.preventDefault();
+  const rect = canvas.getBoundingClientRect();
+  const [wx, wy] = toWorld(e.clientX - rect.left, e.clientY - rect.top);
+  view.scale *= Math.exp(-e.deltaY * 0.0015);
+  const [nx, ny] = toWorld(e.clientX - rect.left, e.clientY - rect.top);
+  view.cx += wx - nx; view.cy += wy - ny;     // keep the point under the cursor still
+  view.userMoved = true; dirty = true;
+}, { passive: false });
+document.getElementById("fit").onclick = () => { view.userMoved = false; fit(); };
+document.getElementById("show-trails").onchange = () => { dirty = true; };
+document.getElementById("show-markers").onchange = () => { dirty = true; };
+window.addEventListener("resize", resize);
+
+resize();
+connect();
+requestAnimationFrame(frame);
