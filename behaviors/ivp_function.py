@@ -31,8 +31,16 @@ def _rescale(values: np.ndarray, top: float) -> np.ndarray:
 
 def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 50.0,
            speed_weight: float = 50.0, pwt: float = 100.0) -> IvPFunction:
-    """Course x speed: each rescaled to its weight, summed on the product grid, rescaled to 0..100."""
+    """Course x speed: each rescaled to its weight, summed on the product grid, rescaled to 0..100.
+
+    The sum is separable, so its range comes from the 1-D parts and the final rescale is folded
+    into them: one outer addition is the only operation on the full grid.
+    """
     c = _rescale(f_course.values, course_weight)
     s = _rescale(f_speed.values, speed_weight)
-    g = c[:, None] + s[None, :]
-    return IvPFunction(f_course.vars + f_speed.vars, _rescale(g, 100.0) if g.max() > g.min() else g, pwt)
+    c_lo, s_lo = float(c.min()), float(s.min())
+    span = float(c.max()) - c_lo + float(s.max()) - s_lo
+    if span > 0:
+        k = 100.0 / span
+        c, s = (c - c_lo) * k, (s - s_lo) * k
+    return IvPFunction(f_course.vars + f_speed.vars, c[:, None] + s[None, :], pwt)
