@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import asyncio
 
-from conftest import start_moosdb
+from helpers import start_moosdb
 from helpers import async_wait_until, conformance_files, load_capture
 from moosdb_py import codec
 from moosdb_py.client import MOOSClient

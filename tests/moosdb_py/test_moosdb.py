@@ -6,7 +6,7 @@ import subprocess
 import sys
 import time
 
-from conftest import free_port, start_moosdb
+from helpers import free_port, start_moosdb
 from moosdb_py import codec
 from moosdb_py.message import MOOSMsg
 

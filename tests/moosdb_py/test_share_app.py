@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import start_moosdb
+from helpers import start_moosdb
 from helpers import async_wait_until
 
 from moosdb_py.app import MOOSApp

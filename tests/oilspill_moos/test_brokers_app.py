@@ -5,7 +5,7 @@ import asyncio
 import logging
 import socket
 
-from conftest import start_moosdb
+from helpers import start_moosdb
 from helpers import async_wait_until
 
 from moosdb_py.client import MOOSClient
