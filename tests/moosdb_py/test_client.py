@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import asyncio
 
-from helpers import start_moosdb
-from helpers import async_wait_until, conformance_files, load_capture
+from helpers import async_wait_until, conformance_files, load_capture, start_moosdb
 from moosdb_py import codec
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg

@@ -8,8 +8,7 @@ import subprocess
 import sys
 
 import pytest
-from helpers import start_moosdb
-from helpers import async_wait_until
+from helpers import async_wait_until, start_moosdb
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.client import MOOSClient

@@ -5,8 +5,7 @@ import asyncio
 import logging
 import socket
 
-from helpers import start_moosdb
-from helpers import async_wait_until
+from helpers import async_wait_until, start_moosdb
 
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg
