@@ -35,7 +35,7 @@ class BHV_StationKeep(IvPBehavior):
         self.pskeep = "disabled"
         self.dist = -1.0
         self.samples: deque[tuple[float, float]] = deque()
-        self.approached = False
+        self.transit = "pending_progress_start"
 
     def set_param(self, key: str, value: str) -> bool:
         low = value.lower()
@@ -71,7 +71,7 @@ class BHV_StationKeep(IvPBehavior):
         self.station = pt
         self.pskeep = "hibernating"
         self.samples.clear()
-        self.approached = False
+        self.transit = "pending_progress_start"
 
     def desired_speed(self, d: float) -> float:
         if self.pskeep == "hibernating" or d <= self.inner:
@@ -80,23 +80,30 @@ class BHV_StationKeep(IvPBehavior):
             return self.outer_speed * (d - self.inner) / (self.outer - self.inner)
         return self.transit_speed
 
+    def _history_trend(self) -> float | None:
+        """newest - oldest distance over the 10 s history, or None while it spans 5 s or less."""
+        (t0, d0), (t1, d1) = self.samples[0], self.samples[-1]
+        return d1 - d0 if t1 - t0 > PROGRESS_SPAN else None
+
     def _update_pskeep(self, d: float) -> None:
+        """Hibernation: sleep inside the radius once the approach has stopped closing (spec §6.4)."""
+        self.samples.append((self.now, d))
+        while self.now - self.samples[0][0] > PROGRESS_WINDOW:
+            self.samples.popleft()
+        trend = self._history_trend()
+        if self.transit == "pending_progress_start":
+            if d <= self.hibernation_radius and trend is not None and trend <= 0:
+                self.samples.clear()
+                self.transit = "noted_progress_start"
+        elif self.transit == "noted_progress_start" and trend is not None and trend >= 0:
+            self.transit = "noted_progress_end"
         if self.pskeep == "hibernating":
             if d > self.hibernation_radius:
-                self.pskeep = "seeking_station"
+                self.pskeep, self.transit = "seeking_station", "pending_progress_start"
                 self.samples.clear()
-                self.approached = False
-            return
-        self.samples.append((self.now, d))
-        while self.samples and self.now - self.samples[0][0] > PROGRESS_WINDOW:
-            self.samples.popleft()
-        t0, d0 = self.samples[0]
-        spanned = self.now - t0 > PROGRESS_SPAN
-        if spanned and d <= self.hibernation_radius and d <= d0:
-            self.approached = True
-        stalled = self.approached and spanned and d >= d0
-        if d <= self.inner or (d <= self.hibernation_radius and stalled):
-            self._set_station(self.station)
+        elif d <= self.inner or (self.transit == "noted_progress_end" and d <= self.hibernation_radius):
+            self.pskeep, self.transit = "hibernating", "hibernating"
+            self.samples.clear()
 
     def circles(self, active: bool) -> None:
         if self.station is None:

@@ -199,3 +199,24 @@ def test_loiter_direction_and_parameters(domain):
     for key, value in (("clockwise", "maybe"), ("points", "1,2"), ("polygon", "radial:: x=0,y=0,radius=5")):
         with pytest.raises(ValueError):
             lt.apply(key, value)
+
+
+def test_hibernation_after_the_approach_stops_closing(domain):
+    info = InfoBuffer()
+    sk = BHV_StationKeep(domain, info, "abe")
+    for k, v in dict(station_pt="0,0", inner_radius=5, outer_radius=10, hibernation_radius=20).items():
+        sk.apply(k, str(v))
+    track = [(0, 30)] + [(t, 19 - t) for t in range(1, 8)] + [(t, 12) for t in range(8, 16)]
+    modes = []
+    for t, d in track:
+        sk.now = float(t)
+        at(info, d, 0)
+        sk.posts = []
+        sk.on_run_state()
+        modes.append(sk.pskeep)
+    assert modes[0] == "seeking_station" and "hibernating" not in modes[:14]
+    assert modes[-1] == "hibernating"                      # 12 m out, inside the 20 m radius, stalled
+    sk.now = 16.0
+    at(info, 25, 0)
+    sk.on_run_state()
+    assert sk.pskeep == "seeking_station" and sk.desired_speed(25) == sk.transit_speed
