@@ -164,7 +164,8 @@ def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result) 
         sock.close()
 
 
-def throughput(port: int, n_pub: int, n_sub: int, seconds: float) -> float:
+def throughput(pid: int, port: int, n_pub: int, n_sub: int, seconds: float) -> tuple[float, float]:
+    """Messages delivered per second, and the DB's CPU time per delivered message (load-independent)."""
     ctx = mp.get_context("fork")
     subs_ready, pubs_ready, go, stop = ctx.Event(), ctx.Event(), ctx.Event(), ctx.Event()
     received = ctx.Value("q", 0)
@@ -176,10 +177,13 @@ def throughput(port: int, n_pub: int, n_sub: int, seconds: float) -> float:
     pubs.start()
     pubs_ready.wait(300)
     go.set()
+    time.sleep(0.5)                      # the subscribers' warm-up
+    cpu = cpu_seconds(pid)
     subs.join(seconds + 30)
+    cpu = cpu_seconds(pid) - cpu
     stop.set()
     pubs.join(10)
-    return received.value / seconds
+    return received.value / seconds, cpu / max(received.value, 1) * 1e6
 
 
 # -- latency, idle clients, big binary --------------------------------------------------------------
@@ -247,9 +251,13 @@ def bench(template: str, seconds: float, idle: int) -> dict:
     out = {}
     try:
         for n in (1, 4, 16):
-            out[f"fan-in {n:>2} pub -> 1 sub (msg/s)"] = throughput(port, n, 1, seconds)
+            rate, cost = throughput(proc.pid, port, n, 1, seconds)
+            out[f"fan-in {n:>2} pub -> 1 sub (msg/s)"] = rate
+            out[f"fan-in {n:>2} pub -> 1 sub (DB CPU us/msg)"] = cost
         for n in (1, 8, 32):
-            out[f"fan-out 1 pub -> {n:>2} sub (deliveries/s)"] = throughput(port, 1, n, seconds)
+            rate, cost = throughput(proc.pid, port, 1, n, seconds)
+            out[f"fan-out 1 pub -> {n:>2} sub (deliveries/s)"] = rate
+            out[f"fan-out 1 pub -> {n:>2} sub (DB CPU us/delivery)"] = cost
         rtt = round_trips(port, "RTT", 1.0, 300, 0.005)
         out["round trip p50 (ms)"] = statistics.median(rtt) * 1e3
         out["round trip p99 (ms)"] = statistics.quantiles(rtt, n=100)[98] * 1e3

@@ -143,7 +143,7 @@ class ClientConnection(asyncio.Protocol):
                     self._handshake(unit)
         except (codec.CodecError, codec.FramingError) as exc:
             self.drop(f"malformed input: {exc}")
-        self.db.schedule_flush()
+        self.db.flush()     # everything this chunk produced goes out now, one packet per client
 
     def connection_lost(self, exc):
         self.state = "closed"
@@ -198,10 +198,10 @@ class ClientConnection(asyncio.Protocol):
         self.transport.write(codec.encode_packet([msg]))
         self.close()
 
-    def close(self, reason: str = "closed by the DB") -> None:
+    def close(self) -> None:
         """Close after sending what is queued; the DB forgets the client in connection_lost."""
         if self.state != "closed":
-            self.state, self.drop_reason = "closed", reason
+            self.state, self.drop_reason = "closed", "closed by the DB"
             self.transport.close()
 
     def drop(self, reason: str) -> None:
@@ -333,7 +333,7 @@ class MOOSDB:
 
     # -- mail delivery -------------------------------------------------------------------------
     def schedule_flush(self) -> None:
-        """Coalesce every notify of this loop iteration into one packet per async client."""
+        """Send mail queued outside packet processing (DB events, timers) on the next loop turn."""
         if self.dirty and not self._flush_scheduled and self._loop is not None:
             self._flush_scheduled = True
             self._loop.call_soon(self.flush)
