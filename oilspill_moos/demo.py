@@ -75,7 +75,7 @@ class OilspillMission:
     one_process: bool = True
     standoff: float = STANDOFF
     node_timeout: float = 30.0
-    start_line: tuple[float, float] = (0.0, 0.0)   # middle of the vehicles' start line
+    starts: list[tuple[float, float]] | None = None  # vehicle start positions; default: a line south of 0,0
     operating_radius: float = 20000.0
     extra: dict[str, str] = field(default_factory=dict)  # more nsplug macros for every community
 
@@ -92,11 +92,11 @@ class OilspillMission:
         self.shoreside.defines["MOOS_PORT"] = str(self.shoreside.moos_port)
         self.fleet: dict[str, Community] = {}
         for i, name in enumerate(names):
-            x = self.start_line[0] + (i - (len(names) - 1) / 2) * VEHICLE_SPACING
+            x, y = self.starts[i] if self.starts else ((i - (len(names) - 1) / 2) * VEHICLE_SPACING, 0.0)
             port = free_port()
             self.fleet[name] = Community(name, port, {
                 **common, "VNAME": name, "MOOS_PORT": str(port), "PSHARE_PORT": str(free_port(socket.SOCK_DGRAM)),
-                "SHORE_IP": "localhost", "SHORE_PSHARE": str(shore_pshare), "START_POS": f"{x:.1f},{self.start_line[1]:.1f}"})
+                "SHORE_IP": "localhost", "SHORE_PSHARE": str(shore_pshare), "START_POS": f"{x:.1f},{y:.1f}"})
 
     @property
     def communities(self) -> list[Community]:
@@ -277,8 +277,8 @@ def shipped_boundaries() -> list[bytes]:
 
 
 async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, timeout: float,
-                   cycles: list[list[bytes]], origin: str, start: tuple[float, float]) -> dict:
-    mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, start_line=start,
+                   cycles: list[list[bytes]], origin: str, starts: list[tuple[float, float]] | None) -> dict:
+    mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, starts=starts,
                               operating_radius=0.0 if origin.startswith("forecaster") else 20000.0)
     report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": origin, "cycles": []}
     with mission:
@@ -326,15 +326,20 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
             "push_to_loop_s": round(marks[OIL_PATH] - pushed["moos_s"], 2)}
 
 
-def forecaster_ready() -> bool:
-    """The forecaster can only forecast with trained weights (shipped in its weights folder).
+def weights_dir(given: Path | None) -> Path:
+    """The forecaster's weights: `given`, else the folder it ships them in.
     Imported here: the training module pulls in torch, which the shipped-outline demo does not need."""
     from oilspill_moos.forecaster.train import WEIGHTS_DIR
 
-    return any(Path(WEIGHTS_DIR).glob("*.pt"))
+    return Path(given or WEIGHTS_DIR)
 
 
-async def forecaster_lines(timeout: float) -> list[bytes]:
+def forecaster_ready(weights: Path) -> bool:
+    """The forecaster can only forecast with trained weights."""
+    return any(weights.glob("*.pt"))
+
+
+async def forecaster_lines(weights: Path, timeout: float) -> list[bytes]:
     """Run the forecaster process once (`--once`) against a capturing stand-in for pPathAssign.
 
     The demo has to know where the forecast lies before it can put the fleet near it; the
@@ -354,28 +359,30 @@ async def forecaster_lines(timeout: float) -> list[bytes]:
     async with server:
         process = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "oilspill_moos.forecaster", "--once", "--host", "127.0.0.1", "--port", str(port),
-            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
+            "--weights", str(weights), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
         output, _ = await asyncio.wait_for(process.communicate(), timeout)
     if process.returncode != 0 or not lines:
         raise RuntimeError(f"forecaster --once failed: {output.decode(errors='replace')[-400:].strip()}")
     return lines
 
 
-def boundary_source(use_forecaster: bool, timeout: float) -> tuple[list[list[bytes]], str]:
+def boundary_source(weights: Path | None, timeout: float) -> tuple[list[list[bytes]], str]:
     """Per cycle, the lines to push: the forecaster's (every horizon, pushed twice: the repeat
-    re-plans) or the two outlines shipped with the mission."""
-    if use_forecaster:
-        lines = asyncio.run(forecaster_lines(timeout))
-        return [lines, lines], "forecaster (ltc-rk4, shipped weights)"
+    re-plans) when `weights` is given, else the two outlines shipped with the mission."""
+    if weights is not None:
+        lines = asyncio.run(forecaster_lines(weights, timeout))
+        return [lines, lines], f"forecaster (weights in {weights})"
     return [[line] for line in shipped_boundaries()], SHIPPED_BOUNDARIES.name
 
 
-def start_line_near(cycles: list[list[bytes]], standoff: float) -> tuple[float, float]:
-    """Where the fleet starts: 300 m south of the first forecast's stand-off loop, mid-way across."""
+def stations_around(cycles: list[list[bytes]], vehicles: int, standoff: float) -> list[tuple[float, float]]:
+    """Vehicle starts for a forecast tens of kilometres across: evenly round its nearest-horizon
+    stand-off loop, 300 m further out (a fleet already on station around the spill area), so the
+    transits take minutes, not hours."""
     grid = LocalGrid(*ORIGIN)
-    region = containment_region(parse_boundary_line(cycles[0][0].decode(), grid).polygon, standoff)
-    west, south, east, _ = region.bounds
-    return (west + east) / 2, south - 300.0
+    nearest = min((parse_boundary_line(line.decode(), grid) for line in cycles[0]), key=lambda b: b.horizon_h)
+    ring = containment_region(nearest.polygon, standoff + 300.0).exterior
+    return [tuple(ring.interpolate(ring.length * (i + 0.5) / vehicles).coords[0]) for i in range(vehicles)]
 
 
 def write_report(out: Path, observer: Observer, report: dict) -> None:
@@ -386,10 +393,12 @@ def write_report(out: Path, observer: Observer, report: dict) -> None:
 
     out.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(8, 8))
-    for i, poly in enumerate(observer.boundaries):
+    boundaries = list(dict.fromkeys(tuple(poly) for poly in observer.boundaries))  # repeats drawn once
+    for i, poly in enumerate(boundaries):
         xs, ys = zip(*(poly + poly[:1]))
-        ax.fill(xs, ys, color="black", alpha=0.15 + 0.15 * i, label=f"predicted boundary {i + 1}")
-    for i, poly in enumerate(observer.regions):
+        ax.fill(xs, ys, color="black", alpha=0.15, label="predicted boundaries" if i == 0 else None)
+    for i, poly in enumerate(dict.fromkeys(tuple(poly) for poly in observer.regions)):
+        poly = list(poly)
         xs, ys = zip(*(poly + poly[:1]))
         ax.plot(xs, ys, "--", color="orange", lw=1, label="stand-off loop" if i == 0 else None)
     for name, track in sorted(observer.tracks.items()):
@@ -421,16 +430,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--source", choices=("auto", "forecaster", "shipped"), default="auto",
                         help="boundaries from the forecaster, the shipped outlines, or the forecaster when its "
                              "weights exist (default auto)")
+    parser.add_argument("--weights", type=Path, default=None,
+                        help="forecaster weights folder (default: the ones shipped with the forecaster)")
     args = parser.parse_args(argv)
     if args.warp <= 0 or args.vehicles < 1:
         parser.error("--warp must be > 0 and --vehicles >= 1")
     started = time.monotonic()
     try:
-        cycles, origin = boundary_source(args.source == "forecaster" or (args.source == "auto" and forecaster_ready()),
-                                         args.timeout)
-        start = start_line_near(cycles, STANDOFF) if origin.startswith("forecaster") else (0.0, 0.0)
+        weights = weights_dir(args.weights) if args.source != "shipped" else None
+        use = args.source == "forecaster" or (weights is not None and forecaster_ready(weights))
+        cycles, origin = boundary_source(weights if use else None, args.timeout)
+        starts = stations_around(cycles, args.vehicles, STANDOFF) if origin.startswith("forecaster") else None
         report = asyncio.run(run_demo(args.out, args.vehicles, args.warp, args.loop_time, args.timeout,
-                                      cycles, origin, start))
+                                      cycles, origin, starts))
     except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
         print(f"demo: {exc}", file=sys.stderr)
         return 1

@@ -45,10 +45,15 @@ class Boundary:
     """A predicted spill outline in local metres, with the forecast it came from."""
 
     polygon: tuple[tuple[float, float], ...]
-    time: float | None = None
+    time: float | None = None     # when the outline is valid (UTC s): issue time + horizon
     horizon_h: float = 0.0
     uncertainty_m: float = 0.0
     source: str = "tcp"
+
+    @property
+    def issued(self) -> float | None:
+        """When the forecast was made; the lines of one forecast (one per horizon) share it."""
+        return None if self.time is None else self.time - 3600.0 * self.horizon_h
 
 
 _PTS = re.compile(r"^\s*pts\s*=\s*\{(?P<body>[^}]*)\}\s*(?:,.*)?$", re.IGNORECASE)
@@ -175,7 +180,7 @@ class Coordinator:
     seq: int = 0
     vehicles: dict[str, Vehicle] = field(default_factory=dict)
     forecasts: dict[float, Boundary] = field(default_factory=dict)
-    forecast_time: float | None = None
+    forecast_time: float | None = None  # issue time of the forecast in force
     boundary_received: float | None = None
     plan: Plan | None = None
     reported: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -195,26 +200,27 @@ class Coordinator:
 
     def offer_boundary(self, boundary: Boundary, now: float) -> int:
         """Accept a boundary (start a new cycle) or raise BoundaryError; the boundary in force stays on error."""
-        region = self._checked_region(boundary)
-        same_forecast = boundary.time is not None and boundary.time == self.forecast_time
+        self._checked_region(boundary)
+        issued = boundary.issued
+        same_forecast = issued is not None and self.forecast_time is not None \
+            and abs(issued - self.forecast_time) < 1.0
         if not same_forecast:
-            if self.forecast_time is not None and boundary.time is not None and boundary.time < self.forecast_time:
-                raise BoundaryError(f"forecast time {boundary.time} is older than the one in force "
-                                    f"({self.forecast_time})")
+            if self.forecast_time is not None and issued is not None and issued < self.forecast_time:
+                raise BoundaryError(f"forecast issued at {issued:.0f} is older than the one in force "
+                                    f"({self.forecast_time:.0f})")
             wait = self._last_cycle + self.settings.min_replan_interval - now
             if wait > 0:
                 raise BoundaryError(f"boundary flood: the last one is {now - self._last_cycle:.1f} s old, "
                                     f"next accepted in {wait:.1f} s")
             self.forecasts = {}
-        self.forecast_time = boundary.time
+        self.forecast_time = issued
         self.forecasts[boundary.horizon_h] = boundary
         self.seq += 1
         self._last_cycle = now
-        self.boundary_received = now
         self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(boundary.polygon)}}},label=oilspill_{self.seq}")
-        self._post("VIEW_POLYGON", f"pts={{{format_points(region.exterior.coords[:-1])}}},"
-                                   f"label=standoff,edge_color=orange")
-        self._begin_station_keeping(now)
+        if not (same_forecast and self.phase == STATION_KEEPING):  # another horizon joins the cycle under way
+            self.boundary_received = now
+            self._begin_station_keeping(now)
         return self.seq
 
     def on_coordinates(self, text: str, now: float, community: str = "") -> None:
@@ -310,6 +316,8 @@ class Coordinator:
         self.plan = plan
         self.arrived = set()
         self._set_phase(STARTING_POSITION, now)
+        self._post("VIEW_POLYGON", f"pts={{{format_points(plan.region.exterior.coords[:-1])}}},"
+                                   f"label=standoff,edge_color=orange")
         for name, start in plan.starts.items():
             suffix = name.upper()
             self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points([start])}")
@@ -446,7 +454,7 @@ SUBSCRIPTIONS:
 
 PUBLICATIONS:
   OILSPILL_BOUNDARY            pts={...},label=oilspill_<seq>: the boundary in force
-  VIEW_POLYGON                 the stand-off loop, for viewers
+  VIEW_POLYGON                 the stand-off loop in force (label=standoff), for viewers
   OILSPILL_PHASE               STATION-KEEPING | STARTING-POSITION | OIL-PATH
   STATION_KEEP_ALL, STATION_KEEP_<V>       true on a new boundary, false when moving on
   OILSPILL_PHASE_ALL, OILSPILL_PHASE_<V>   the phase each vehicle should be in

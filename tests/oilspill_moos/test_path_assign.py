@@ -163,8 +163,11 @@ def test_horizons_of_one_forecast_are_not_a_flood_and_the_matching_one_is_chosen
     c = Coordinator(Settings(fleet=("abe",), standoff=0, transit_speed=1.0))
     near = tuple((x - 5000, y - 5000) for x, y in SQUARE)  # the 3 h outline, about 1.9 h away
     far = tuple((x + 20000, y + 20000) for x, y in SQUARE)  # the 7 h outline, about 7.8 h away
-    c.offer_boundary(Boundary(near, time=1000.0, horizon_h=3), 0.0)
-    c.offer_boundary(Boundary(far, time=1000.0, horizon_h=7), 0.5)
+    issued = 1000.0  # the lines carry their valid time: issue time + horizon, as the forecaster sends them
+    c.offer_boundary(Boundary(near, time=issued + 3 * 3600, horizon_h=3), 0.0)
+    c.offer_boundary(Boundary(far, time=issued + 7 * 3600, horizon_h=7), 0.5)
+    assert c.forecast_time == issued and len(c.forecasts) == 2
+    assert posts(c, "OILSPILL_PHASE") == [STATION_KEEPING]  # the second horizon joined the cycle under way
     c.on_coordinates("vname=abe,x=0,y=0", 1.0)
     assert c.phase == STARTING_POSITION
     assert c.plan.starts["abe"][0] > 10000  # the 7 h outline: 3 h would be long gone on arrival
