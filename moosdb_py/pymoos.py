@@ -519,10 +519,11 @@ class app:  # noqa: N801
             self._loop.call_soon_threadsafe(self._moos_app.stop)
         return True
 
-    def _in_loop(self, func, *args) -> bool:
-        """Call into the app's client in its own thread (at once from a callback)."""
+    def _in_loop(self, method: str, *args) -> bool:
+        """`self._moos_app.<method>(*args)` in the app's thread (at once from a callback)."""
         if self._moos_app is None:
-            raise RuntimeError("app is not running: call run() first")
+            raise RuntimeError(f"app is not running: call run() first ({method})")
+        func = getattr(self._moos_app, method)
         if self._loop is None or self._loop_thread == threading.get_ident():
             func(*args)
         else:
@@ -534,8 +535,8 @@ class app:  # noqa: N801
         """`register(name, interval=0)`, or the wildcard form `register(var_pattern, app_pattern, interval)`."""
         name, app_pattern, interval = register_arguments(args, kwargs)
         if app_pattern is None:
-            return self._in_loop(self._moos_app.register, name, interval)
-        return self._in_loop(self._moos_app.register_wildcard, name, app_pattern, interval)
+            return self._in_loop("register", name, interval)
+        return self._in_loop("register_wildcard", name, app_pattern, interval)
 
     def notify(self, name: str, value, *args, aux_src: str | None = None, time: float = -1.0) -> bool:
         """`notify(name, value, time=-1)`; -1 means now."""
@@ -546,7 +547,7 @@ class app:  # noqa: N801
         return self._post(name, bytes(binary_data), "", float(time))
 
     def _post(self, name: str, value: float | str | bytes, aux: str, stamp: float) -> bool:
-        return self._in_loop(self._moos_app.notify, name, value, time() if stamp == -1 else stamp, aux)
+        return self._in_loop("notify", name, value, time() if stamp == -1 else stamp, aux)
 
     def fetch(self) -> list[moos_msg]:
         """Mail received since the last fetch (collected only while no on-new-mail callback is set)."""
