@@ -15,7 +15,7 @@ from .client import MOOSClient
 from .message import MOOSMsg, moos_time
 from .mission import read_mission
 from .source import MissionFileError
-from .xms import Scope, format_table
+from .xms import Scope, connect, format_table
 
 DEFAULT_TIMEOUT = 5.0
 
@@ -88,7 +88,10 @@ def _parser() -> argparse.ArgumentParser:
 
 async def poke_db(host: str, port: int, pokes: list[Poke], *, name: str = "uPokeDB", time_warp: float = 1.0,
                   timeout: float = DEFAULT_TIMEOUT) -> tuple[Scope, Scope]:
-    """Post each poke and wait for the DB's echo; returns (before, after). TimeoutError if unconfirmed."""
+    """Post each poke and wait for the DB's echo; returns (before, after).
+
+    ConnectionError when no DB answers or it refuses us, TimeoutError when the echo does not come.
+    """
     names = list(dict.fromkeys(p.var for p in pokes))
     before, after = Scope(names), Scope(names)
     confirmed = asyncio.Event()
@@ -120,8 +123,7 @@ async def poke_db(host: str, port: int, pokes: list[Poke], *, name: str = "uPoke
     client = MOOSClient(name, host, port, on_mail=on_mail, on_connect=on_connect, time_warp=time_warp)
     runner = asyncio.create_task(client.run())
     try:
-        if not await client.wait_connected(timeout):
-            raise TimeoutError(f"no MOOSDB on {host}:{port}")
+        await connect(client, runner, timeout)
         await asyncio.wait_for(confirmed.wait(), timeout)
     finally:
         client.close()
@@ -153,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     except (asyncio.TimeoutError, TimeoutError):
         print(f"uPokeDB: no confirmation from the MOOSDB on {host}:{port} within {args.timeout:g} s",
               file=sys.stderr)
+        return 1
+    except ConnectionError as exc:
+        print(f"uPokeDB: {exc}", file=sys.stderr)
         return 1
     if not args.quiet:
         before.start = after.start = start

@@ -99,6 +99,17 @@ def history_line(msg: MOOSMsg, start: float, trunc: int = 0) -> str:
     return f"{msg.time - start:<10.2f} {msg.key:<20} {msg.source:<15} {value_text(msg, trunc)}"
 
 
+async def connect(client: MOOSClient, runner: asyncio.Task, timeout: float) -> None:
+    """Wait for the handshake; ConnectionError saying why (no DB answering, or the DB refused us)."""
+    waiting = asyncio.create_task(client.wait_connected(timeout))
+    await asyncio.wait({waiting, runner}, return_when=asyncio.FIRST_COMPLETED)
+    if client.poisoned:
+        waiting.cancel()
+        raise ConnectionError(f"the MOOSDB on {client.host}:{client.port} refused {client.name}: {client.poisoned}")
+    if not await waiting:
+        raise ConnectionError(f"no MOOSDB answering on {client.host}:{client.port}")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="uXMS", description=__doc__.split("\n\n")[0])
     p.add_argument("args", nargs="*", help="[mission.moos] then variables to watch (wildcards * and ? allowed)")
@@ -236,8 +247,10 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     try:
-        if not await client.wait_connected(max(args.wait, 1.0)):
-            print(f"uXMS: no MOOSDB answering on {opts.host}:{opts.port}", file=sys.stderr)
+        try:
+            await connect(client, runner, max(args.wait, 1.0))
+        except ConnectionError as exc:
+            print(f"uXMS: {exc}", file=sys.stderr)
             return 1
         if args.once or args.mode == "paused":
             try:

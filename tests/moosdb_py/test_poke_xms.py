@@ -3,9 +3,11 @@ import asyncio
 import os
 import subprocess
 import sys
+import threading
 
 import pytest
 
+from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg
 from moosdb_py.poke import Poke, parse_poke, poke_db
 from moosdb_py.poke import main as poke_main
@@ -112,9 +114,32 @@ def in_process(main, capsys, *args):
 def test_tools_fail_clearly_without_a_db(free_port, capsys):
     port = free_port()
     code, _, err = in_process(poke_main, capsys, "--port", port, "--timeout", "0.3", "A=1")
-    assert code == 1 and f"no confirmation from the MOOSDB on localhost:{port}" in err
+    assert code == 1 and f"no MOOSDB answering on localhost:{port}" in err
     code, _, err = in_process(xms_main, capsys, "--port", port, "--wait", "0.3", "A", "--once")
     assert code == 1 and f"no MOOSDB answering on localhost:{port}" in err
+
+
+def test_a_name_the_db_refuses_is_explained(moosdb_server, capsys):
+    connected, release = threading.Event(), threading.Event()
+
+    async def hold_the_name():
+        holder = MOOSClient("uXMS", moosdb_server.host, moosdb_server.port)
+        running = asyncio.create_task(holder.run())
+        if await holder.wait_connected(10):
+            connected.set()
+        await asyncio.to_thread(release.wait, 30)
+        holder.close()
+        await running
+
+    thread = threading.Thread(target=asyncio.run, args=(hold_the_name(),))
+    thread.start()
+    try:
+        assert connected.wait(15)
+        code, _, err = in_process(xms_main, capsys, "--port", moosdb_server.port, "A", "--once")
+    finally:
+        release.set()
+        thread.join(15)
+    assert code == 1 and f"the MOOSDB on localhost:{moosdb_server.port} refused uXMS" in err
 
 
 def test_bad_command_lines(tmp_path, capsys):
