@@ -13,6 +13,7 @@ import pytest
 
 from helpers import wait_until
 from moosdb_py import pymoos
+from moosdb_py.source import MissionFileError
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "pymoos.md"
 
@@ -120,6 +121,17 @@ def test_app_start_up_failure_quits(free_port, caplog):
         assert raising.run("localhost", free_port(), "pRaising") is False
     assert "pRefusing: OnStartUp returned false" in caplog.text
     assert "pRaising OnStartUp: caught an exception" in caplog.text and "ZeroDivisionError" in caplog.text
+
+
+def test_app_with_a_broken_mission_file_names_file_and_line(free_port, tmp_path):
+    mission = tmp_path / "broken.moos"
+    mission.write_text("ServerPort = 9000\nMOOSTimeWarp = fast\n\nProcessConfig = pScript\n{\n  AppTick = -2\n}\n")
+    with pytest.raises(MissionFileError, match=r"broken.moos:6: AppTick = '-2' is not a positive number"):
+        pymoos.app().run("localhost", free_port(), "pScript", str(mission))
+    mission.write_text("MOOSTimeWarp = fast\n")
+    with pytest.raises(MissionFileError, match=r"broken.moos:1: MOOSTimeWarp = 'fast' is not a positive number"):
+        pymoos.app().run("localhost", free_port(), "pScript", str(mission))
+    assert pymoos.get_moos_timewarp() == 1.0
 
 
 def _worked_example() -> str:
