@@ -120,7 +120,8 @@ class comms:  # noqa: N801 - pymoos's name, so scripts only change their import
         if self._thread is None:
             return True
         self._call("close")
-        self._thread.join(5.0 if nice else 0.5)
+        if threading.current_thread() is not self._thread:     # a callback may close its own comms
+            self._thread.join(5.0 if nice else 0.5)
         self._thread = None
         return True
 

@@ -506,6 +506,7 @@ class app:  # noqa: N801
             return False
         finally:
             self._loop = self._loop_thread = None
+            self._quit_requested = False
         return True
 
     async def _serve(self, moos_app: _ScriptApp) -> None:

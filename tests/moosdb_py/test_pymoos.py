@@ -206,6 +206,11 @@ def test_bad_input_and_callbacks_that_raise(moosdb_server, caplog):
     assert c.is_connected()
     c.close(True)
 
+    closer = pymoos.comms()
+    closer.set_on_connect_callback(lambda: closer.close(True))    # closing from its own comms thread
+    closer.run("localhost", moosdb_server.port, "closing_script")
+    wait_until(lambda: not closer.is_running(), timeout=5)
+
 
 def test_module_functions_tuning_and_comms_status(moosdb_server, capsys):
     assert pymoos.is_little_end_in() in (True, False) and pymoos.get_moos_timewarp() == 1.0
