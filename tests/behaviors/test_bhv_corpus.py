@@ -173,3 +173,20 @@ def test_behavior_block_keeps_every_line_in_order(params, indent):
     spec = parse_bhv(bhv_lines(f"Behavior = BHV_Anything\n{{\n{body}\n}}\n")).behaviors[0]
     assert [(p.key, p.value) for p in spec.params] == [(k, v) for k, v in params]
     assert [p.line for p in spec.params] == list(range(3, 3 + len(params)))
+
+
+_bhv_lines = st.lists(st.sampled_from([
+    "Behavior = BHV_Waypoint", "Behavior=BHV_X {", "{", "}", "} ELSE", "set MODE = A", "set MODE = B {",
+    "initialize A = 1, B = \"x,y\"", "initialize_ C = 2", "name = w", "condition = (A=1) and (B=2)",
+    "condition = A = ", "endflag = X = 1 [if] Y < 2", "runflag = NOEQ", "DEPLOY = true", "MODE = A",
+    "", "// note", "# note", "pwt = 50", "points = 1,2:3,4 \\", "x = y }", "A=1 and B=2", "!(A = 1)",
+]), max_size=14)
+
+
+@settings(max_examples=80, deadline=None)
+@given(_bhv_lines)
+def test_any_line_sequence_parses_or_names_its_line(lines):
+    try:
+        parse_bhv(bhv_lines("\n".join(lines)))
+    except MissionFileError as exc:
+        assert 0 <= exc.line <= len(lines) and str(exc).startswith(f"t.bhv:{exc.line}: ")

@@ -3,8 +3,10 @@ import math
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from behaviors.bhv_file import parse_bhv, read_bhv
+from behaviors.domain import IvPDomain, parse_domain_line
 from behaviors.helm import Helm
 from moosdb_py.source import MissionFileError, SourceLine
 
@@ -249,3 +251,20 @@ def test_constant_behaviours_time_out_at_once_without_a_duration(domain, make_bh
     run(helm, Boat(), 2, log=log)
     assert [(t, val) for t, v, val in log if v == "DONE"] == [(1.0, "bhv_constant_speed")]
     assert helm.behaviors == [] and "DESIRED_SPEED" not in [v for _, v, val in log if val != 0.0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.text(alphabet="pointsspeedrepeatforevercapture_radiusorderlead=#,:.-0123456789 xyz{}",
+                        max_size=40), min_size=1, max_size=4))
+def test_any_update_string_leaves_the_helm_running(updates):
+    bhv = bhv_of("Behavior = BHV_Waypoint\n{\n name = w\n updates = U\n points = 0,50\n speed = 1\n}\n"
+                 "Behavior = BHV_StationKeep\n{\n name = s\n updates = U\n point = 0,0\n duration = -1\n}\n")
+    domain = IvPDomain(vars=[parse_domain_line("course:0:359:36"), parse_domain_line("speed:0:4:9")])
+    helm = Helm([bhv], domain, "v", active_start=True)
+    helm.startup(0.0)
+    log = []
+    run(helm, Boat(), 2 + 0.25 * len(updates), log=log,
+        pokes={2.0 + 0.25 * i: {"U": text} for i, text in enumerate(updates)})
+    results = [val for _, v, val in log if v == "IVPHELM_UPDATE_RESULT"]
+    assert len(results) == 2 * sum(bool(u.strip()) for u in updates)
+    assert all(v == "IVPHELM_STATE" and val == "DRIVE" for _, v, val in log if v == "IVPHELM_STATE")
