@@ -144,9 +144,18 @@ class OilspillMission:
     def restart_community(self, name: str) -> None:
         self._launch(self.shoreside if name == "shoreside" else self.fleet[name])
 
-    def stop(self) -> None:
-        for community in reversed(self.communities):
-            self.stop_community(community.name)
+    def stop(self, timeout: float = 10.0) -> None:
+        """Every community at once (each pAntler stops its own apps), then wait for them all."""
+        running = [c.process for c in self.communities if c.process is not None and c.process.poll() is None]
+        for process in running:
+            os.killpg(process.pid, signal.SIGTERM)
+        deadline = time.monotonic() + timeout
+        for process in running:
+            try:
+                process.wait(timeout=max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
 
     def dead(self) -> list[str]:
         """Communities whose pAntler ended by itself (a crash the caller should report)."""
