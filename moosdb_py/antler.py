@@ -380,17 +380,25 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, str]]:
+    """MOOS's `--Name=value` global overrides, apart from pAntler's own options (anywhere on the line)."""
+    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help"}
+    rest, overrides = [], {}
+    for arg in argv:
+        match = re.fullmatch(r"--([\w-]+)=(.*)", arg)
+        if match is not None and match.group(1) not in own:
+            overrides[match.group(1)] = match.group(2)
+        else:
+            rest.append(arg)
+    return rest, overrides
+
+
 def main(argv: list[str] | None = None) -> int:
-    args, unknown = _parser().parse_known_args(argv)
+    rest, overrides = split_overrides(sys.argv[1:] if argv is None else list(argv))
+    args = _parser().parse_intermixed_args(rest)
     if args.example or args.interface:
         print(EXAMPLE if args.example else INTERFACE, end="")
         return 0
-    overrides = {}
-    for option in unknown:
-        match = re.fullmatch(r"--(\w+)=(.*)", option)
-        if match is None:
-            _parser().error(f"unrecognized argument {option}")
-        overrides[match.group(1)] = match.group(2)
     if not args.mission:
         _parser().error("a mission file is required")
     with tempfile.TemporaryDirectory(prefix="pAntler_") as folder:

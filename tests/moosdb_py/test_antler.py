@@ -12,7 +12,7 @@ import pytest
 
 from helpers import async_wait_until, wait_until
 from moosdb_py.alog import read_alog
-from moosdb_py.antler import DB_TARGET, LaunchSpec, expanded_mission, plan
+from moosdb_py.antler import DB_TARGET, LaunchSpec, _parser, expanded_mission, plan, split_overrides
 from moosdb_py.client import MOOSClient
 from moosdb_py.mission import AntlerRun, Where, read_mission
 from moosdb_py.source import MissionFileError
@@ -71,6 +71,14 @@ def test_apps_without_a_console_script_start_through_the_boot_line(tmp_path, tar
     argv = LaunchSpec(run, ["--example"], target=target).argv()
     assert argv[1] == "-c"
     assert expected in subprocess.run(argv, capture_output=True, text=True, timeout=20).stdout
+
+
+def test_command_line_mixes_filters_macros_and_overrides():
+    rest, overrides = split_overrides(["m.moos", "--nsplug", "A=1", "pLogger", "--MOOSTimeWarp=3", "uXMS",
+                                       "--nsplug=B=2", "--ServerPort=9100"])
+    assert overrides == {"MOOSTimeWarp": "3", "ServerPort": "9100"}
+    args = _parser().parse_intermixed_args(rest)
+    assert (args.mission, args.only, args.nsplug) == ("m.moos", ["pLogger", "uXMS"], ["A=1", "B=2"])
 
 
 def test_plan_needs_an_antler_block(tmp_path):
