@@ -13,8 +13,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
-from oilspill_moos.app_config import parse_float
-from oilspill_moos.path_assign import parse_report
+from oilspill_moos.app_config import parse_float, parse_pairs
 
 VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
 # Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).
@@ -62,7 +61,10 @@ def _finite(fields: dict[str, str], key: str, text: str, default: float | None =
 def parse_node_report(text: str, grid=None) -> NodeReport:
     """A NODE_REPORT (keys in any case, LONG as well as LON); a report with only LAT/LON is placed
     with `grid` (the mission's LocalGrid), as with `coord_policy_global`."""
-    fields = parse_report(text)
+    try:
+        fields = parse_pairs(text)
+    except ValueError as exc:
+        raise ViewError(f"NODE_REPORT {text!r}: {exc}") from None
     name = fields.get("name", "")
     if not name:
         raise ViewError(f"NODE_REPORT without NAME: {text!r}")

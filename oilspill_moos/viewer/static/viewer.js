@@ -10,7 +10,7 @@ const state = {
   phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
 };
 const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels per metre
-const stats = { messages: 0, updates: 0, frames: 0, frameMs: [], connectedAt: 0 };
+const stats = { messages: 0, updates: 0, frames: 0, frameMs: [], batchMs: [], connectedAt: 0 };
 window.viewerStats = stats;
 window.viewerState = state;
 
@@ -41,7 +41,8 @@ function send(command) {
 
 function setLink(up) {
   document.getElementById("link-dot").className = up ? "" : "down";
-  document.getElementById("link-text").textContent = up ? "live" : "disconnected — retrying";
+  const replaying = state.setup && state.setup.mode === "replay";
+  document.getElementById("link-text").textContent = up ? (replaying ? "replay" : "live") : "disconnected — retrying";
 }
 
 // ---- the picture ----------------------------------------------------------------------------------
@@ -56,7 +57,7 @@ function loadSnapshot(msg) {
   for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
   Object.assign(state, { boundary: msg.boundary, starts: msg.starts, loops: msg.loops, phase: msg.phase,
     commanded: msg.commanded, status: msg.status, time: msg.time });
-  if (first) buildControls();
+  if (first) { buildControls(); setLink(true); }
   document.getElementById("log").replaceChildren();
   for (const note of msg.notes) addNote(note);
   setReplay(msg.replay || null);
@@ -65,12 +66,15 @@ function loadSnapshot(msg) {
 }
 
 function applyBatch(msg) {
+  const started = performance.now();
   state.time = msg.time;
   if (msg.replay) setReplay(msg.replay);
   for (const u of msg.updates) apply(u);
   stats.updates += msg.updates.length;
   refreshPanel();
   if (!view.userMoved && msg.updates.length) fit();
+  stats.batchMs.push(performance.now() - started);
+  if (stats.batchMs.length > 600) stats.batchMs.shift();
 }
 
 function apply(u) {
@@ -329,7 +333,7 @@ function drawVehicles(colors) {
     else { ctx.fillStyle = color; ctx.fill(); ctx.strokeStyle = "#0d1b2a"; ctx.lineWidth = 1; ctx.stroke(); }
     ctx.restore();
     ctx.fillStyle = stale ? "#6b7f94" : "#e0e6ee"; ctx.font = "11px system-ui, sans-serif";
-    ctx.fillText(`${v.name} ${v.phase || ""}`, sx + size * 0.7 + 3, sy - 4);
+    ctx.fillText(v.name, sx + size * 0.7 + 3, sy - 4);
   }
 }
 
