@@ -61,13 +61,31 @@ def test_mission_file_and_flags(tmp_path):
         client.close()
     finally:
         db.stop()
-    db = start_moosdb(str(mission), "--moos_community=beta", port=port)
+    db = start_moosdb(str(mission), "--moos_community=beta", "--response=c*:250", port=port)
     try:
         client = RawClient(port, "c")
         assert client.packet()[0].community == "beta"
+        client.send(MOOSMsg("T", "D", "_async_timing", 0.0, time=time.time() * 10))
+        (echo,) = client.packet()
+        assert echo.key == "_async_timing" and echo.double_aux == 0.25    # consolidation period from --response
         client.close()
     finally:
         db.stop()
+
+
+def test_db_clear_forgets_values(moosdb_server):
+    client = RawClient(moosdb_server.port, "clearer")
+    client.packet()
+    client.send(MOOSMsg.notification("X", 1.0, time=1.0, source="clearer"),
+                MOOSMsg("Q", "S", "DB_CLEAR", id=-2, source="clearer"),
+                MOOSMsg("R", "D", "X", 0.0, source="clearer"),
+                MOOSMsg("Q", "S", "VAR_SUMMARY", id=-2, source="clearer"))
+    (summary,) = client.packet()          # X was cleared: no current value comes back on register
+    assert summary.key == "VAR_SUMMARY" and "X" in summary.string.split(",")
+    client.send(MOOSMsg.notification("X", 2.0, time=1.0, source="clearer"))
+    (back,) = client.packet()             # the subscription survives DB_CLEAR
+    assert back.value == 2.0
+    client.close()
 
 
 def test_help_and_bad_mission(tmp_path):
