@@ -1,0 +1,200 @@
+"""uFldOilSensor: the "true" spill of a simulation, and the oil sensor every vehicle carries.
+
+In the style of MOOS-IvP's uField sensor simulators (uFldBeaconRangeSensor, uFldHazardSensor):
+the shoreside holds the ground truth, a vehicle asks (`OIL_SENSOR_REQUEST`, bridged from its
+community), and the answer goes back on `OIL_SENSOR_REPORT_<V>` (qbridged to the vehicle). The
+truth is a scenario of the forecaster's committed OpenOil dataset: its hourly polygons replayed on
+the mission's warped clock, shrunk by `map_scale` about the mission origin (see
+`oil_fusion.ScenarioMap`). Replies carry the simulated world's time (`utc`, the scenario clock),
+so what the fleet reports can be set against the forecaster's own polygon times.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry.base import BaseGeometry
+
+from moosdb_py.app import MOOSApp
+from oilspill_moos.app_config import config_float, config_str, parse_pairs, read_params
+from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
+
+THICKNESS_CLASSES = ("sheen", "thick")
+
+
+@dataclass
+class TruthSpill:
+    """A scenario's polygons on the mission plane: hour h (since release) -> the latest hourly polygon."""
+
+    times_h: np.ndarray
+    geometries: list[BaseGeometry]      # mission metres
+    release_utc: float
+
+    @classmethod
+    def from_scenario(cls, scenario, world: ScenarioMap) -> "TruthSpill":
+        return cls(np.asarray(scenario.times_h, float), [world.to_local(g) for g in scenario.geometries],
+                   scenario.release_time.timestamp())
+
+    def at(self, hour: float) -> BaseGeometry:
+        index = int(np.clip(np.searchsorted(self.times_h, hour, side="right") - 1, 0, len(self.times_h) - 1))
+        return self.geometries[index]
+
+    def utc(self, hour: float) -> float:
+        return self.release_utc + 3600.0 * hour
+
+
+@dataclass
+class SensorModel:
+    """Oil within `range_m` of the vehicle, flipped by false-positive / false-negative rates.
+
+    With `thickness_depth` > 0 a detection also says how deep inside the slick the vehicle is:
+    "thick" beyond that many metres from the edge, else "sheen".
+    """
+
+    range_m: float = 15.0
+    false_positive: float = 0.0
+    false_negative: float = 0.0
+    thickness_depth: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("false_positive", "false_negative"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} = {getattr(self, name)!r} must lie in [0, 1]")
+        if self.range_m < 0 or self.thickness_depth < 0:
+            raise ValueError("sensor_range and thickness_depth must be >= 0")
+        self.rng = np.random.default_rng(self.seed)
+
+    def sense(self, spill: BaseGeometry, x: float, y: float) -> tuple[bool, str]:
+        point = shapely.Point(x, y)
+        present = bool(shapely.dwithin(spill, point, self.range_m))
+        flip = self.rng.random() < (self.false_negative if present else self.false_positive)
+        detected = present != flip
+        if not detected or self.thickness_depth <= 0:
+            return detected, ""
+        depth = spill.boundary.distance(point) if spill.contains(point) else 0.0
+        return True, THICKNESS_CLASSES[depth >= self.thickness_depth]
+
+
+def parse_request(text: str) -> tuple[str, int, float, float]:
+    """`vname=abe,id=3,x=..,y=..` -> (vname, id, x, y); ValueError naming what is wrong."""
+    fields = parse_pairs(text)
+    try:
+        vname, ident, x, y = fields["vname"].lower(), int(fields["id"]), float(fields["x"]), float(fields["y"])
+    except KeyError as exc:
+        raise ValueError(f"request {text!r} lacks {exc.args[0]}") from None
+    except ValueError:
+        raise ValueError(f"request {text!r}: id, x, y must be numbers") from None
+    if not vname or not (math.isfinite(x) and math.isfinite(y)):
+        raise ValueError(f"request {text!r}: empty vname or non-finite position")
+    return vname, ident, x, y
+
+
+class OilSensor(MOOSApp):
+    """uFldOilSensor: holds a time-evolving "true" spill (a scenario of the forecaster's OpenOil
+    dataset, replayed on the warped mission clock) and answers each vehicle's OIL_SENSOR_REQUEST
+    with OIL_SENSOR_REPORT_<V>: oil within sensor_range or not, with false-positive and
+    false-negative rates and an optional thickness class."""
+
+    default_name = "uFldOilSensor"
+    example_config = """\
+ProcessConfig = uFldOilSensor
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  scenario        = steady_growth-2111   // scenario_id of the committed dataset (the truth)
+  start_hour      = 16      // scenario hour (since release) at the app's start
+  time_scale      = 1       // scenario hours per mission hour (on top of MOOSTimeWarp)
+  map_scale       = 1       // mission metres per real metre: shrinks the spill about the origin
+  sensor_range    = 15      // m (mission frame): "oil" means oil within this distance
+  false_positive  = 0       // probability of reporting oil where there is none
+  false_negative  = 0       // probability of missing oil that is there
+  thickness_depth = 0       // m inside the edge from which a detection is "thick"; 0: no class
+  seed            = 0       // random seed of the sensor noise
+  truth_interval  = 10      // s between VIEW_POLYGON posts of the truth (label=oil_truth)
+}
+"""
+    interface = """\
+SUBSCRIPTIONS:
+  OIL_SENSOR_REQUEST       "vname=abe,id=17,x=..,y=.." (pOilSampler, bridged from each vehicle)
+
+PUBLICATIONS:
+  OIL_SENSOR_REPORT_<V>    "vname=abe,id=17,utc=..,x=..,y=..,oil=1,range=15[,thickness=thick]"
+                           (qbridged to the vehicle as OIL_SENSOR_REPORT; utc: the scenario clock)
+  VIEW_POLYGON             the true spill, label=oil_truth, for viewers and logs
+  OIL_TRUTH_HOUR           the scenario hour being simulated
+  OIL_SENSOR_WARNING       a request that made no sense, with the reason
+"""
+
+    def on_startup(self) -> None:
+        if self.mission is None or self.mission.lat_origin is None or self.mission.long_origin is None:
+            raise ValueError(f"{self.name}: needs a mission file with LatOrigin and LongOrigin")
+        read_params(self.config, self._read)
+        self.answered = self.refused = 0
+        self.clock_start: float | None = None
+        self._last_truth_post = -math.inf
+        self._posted_index = -1
+
+    def _read(self, cfg) -> None:
+        from oilspill_moos.forecaster.dataset import load_dataset
+
+        world = ScenarioMap(LocalGrid(self.mission.lat_origin, self.mission.long_origin),
+                            config_float(cfg, "map_scale", 1.0, lo=1e-6))
+        wanted = config_str(cfg, "scenario", "steady_growth-2111")
+        scenario = next((s for s in load_dataset() if s.scenario_id == wanted), None)
+        if scenario is None:
+            raise ValueError(f"scenario = {wanted!r}: no such scenario_id in the committed dataset")
+        self.truth = TruthSpill.from_scenario(scenario, world)
+        self.start_hour = config_float(cfg, "start_hour", 16.0, lo=0)
+        self.time_scale = config_float(cfg, "time_scale", 1.0, lo=0)
+        self.truth_interval = config_float(cfg, "truth_interval", 10.0, lo=0.1)
+        self.sensor = SensorModel(range_m=config_float(cfg, "sensor_range", 15.0, lo=0),
+                                  false_positive=config_float(cfg, "false_positive", 0.0, lo=0, hi=1),
+                                  false_negative=config_float(cfg, "false_negative", 0.0, lo=0, hi=1),
+                                  thickness_depth=config_float(cfg, "thickness_depth", 0.0, lo=0),
+                                  seed=int(config_float(cfg, "seed", 0)))
+
+    def on_connect(self) -> None:
+        self.register("OIL_SENSOR_REQUEST")
+
+    def hour(self) -> float:
+        now = self.moos_time()
+        if self.clock_start is None:
+            self.clock_start = now
+        return self.start_hour + (now - self.clock_start) * self.time_scale / 3600.0
+
+    def on_new_mail(self, mail) -> None:
+        for msg in mail:
+            if msg.key != "OIL_SENSOR_REQUEST":
+                continue
+            try:
+                vname, ident, x, y = parse_request(str(msg.value))
+            except ValueError as exc:
+                self.refused += 1
+                self.notify("OIL_SENSOR_WARNING", f"{msg.source or '?'}@{msg.community or '?'}: {exc}")
+                continue
+            hour = self.hour()
+            oil, thickness = self.sensor.sense(self.truth.at(hour), x, y)
+            report = Observation(vname, ident, self.truth.utc(hour), x, y, oil, self.sensor.range_m, thickness)
+            self.notify(f"OIL_SENSOR_REPORT_{vname.upper()}", format_observation(report))
+            self.answered += 1
+
+    def iterate(self) -> None:
+        hour = self.hour()
+        index = int(np.searchsorted(self.truth.times_h, hour, side="right"))
+        if index != self._posted_index or self.moos_time() - self._last_truth_post >= self.truth_interval:
+            self._posted_index, self._last_truth_post = index, self.moos_time()
+            spill = self.truth.at(hour)
+            largest = max(getattr(spill, "geoms", [spill]), key=lambda p: p.area)
+            self.notify("VIEW_POLYGON", polygon_string(largest, "oil_truth") + ",edge_color=brown")
+            self.notify("OIL_TRUTH_HOUR", round(hour, 3))
+
+    def status_fields(self) -> dict:
+        return {"answered": self.answered, "refused": self.refused, "hour": f"{self.hour():.2f}"}
+
+
+main = OilSensor.main
