@@ -357,3 +357,15 @@ def test_phase_machine_invariants_under_any_mail_order(sequence):
     for key, value in c.outbox:
         if key.startswith("OIL_PATH_UPDATES_"):
             assert value.startswith("points=") and value.endswith("#repeat=forever")
+
+
+def test_example_block_is_a_working_config_with_the_defaults(tmp_path):
+    path = tmp_path / "example.moos"
+    path.write_text("ServerPort = 9000\nCommunity = shoreside\n\n" + PathAssign.example_config)
+    app = PathAssign(path)
+    app.on_startup()
+    assert app.coordinator.settings == Settings(operating_area=None)
+    assert {e.key.lower() for e in app.config.entries} >= {
+        "boundary_host", "boundary_port", "standoff", "coordinate_timeout", "arrival_timeout", "node_timeout",
+        "capture_radius", "transit_speed", "loop_speed", "min_replan_interval", "heartbeat_interval",
+        "status_interval", "operating_radius"}
