@@ -241,7 +241,7 @@ PUBLICATIONS:
         self.alog = AlogWriter(self.directory / f"{self.root}.alog", self.log_start, shown_path=shown + ".alog",
                                **writer_options) if settings.async_log else None
         self.xlog = AlogWriter(self.directory / f"{self.root}.xlog", self.log_start, shown_path=shown + ".xlog",
-                               **writer_options) if settings.wildcard_exclusion_log else None
+                               **writer_options) if settings.wildcard_exclusion_log and settings.wildcard_logging else None
         sync_vars = [r.var for r in settings.logs if r.sync]
         self.slog = SyncLog(self.directory / f"{self.root}.slog", shown + ".slog", self.log_start, sync_vars,
                             settings.double_precision) if settings.sync_log else None
@@ -255,7 +255,7 @@ PUBLICATIONS:
     def on_connect(self) -> None:
         for request in self.settings.logs:
             self.register(request.var, request.period)
-        if self.settings.wildcard_logging or self.settings.wildcard_exclusion_log:
+        if self.settings.wildcard_logging:
             for pattern in self.settings.wildcard_patterns:
                 self.register_wildcard(pattern, "*", 0.0)
         self.register(CMD_VAR)
@@ -273,7 +273,7 @@ PUBLICATIONS:
                     self.lines_written += 1
                 if self.slog is not None and not msg.is_binary():
                     self.slog.update(msg.key, msg.value)
-            elif self.xlog is not None and self.settings.wildcard_logging:
+            elif self.xlog is not None:
                 self.xlog.write(msg)
                 self.excluded += 1
 
