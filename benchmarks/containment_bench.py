@@ -83,23 +83,26 @@ async def stack_figure(n: int, warp: float, timeout: float) -> None:
         bound = longest / TRANSIT_SPEED
         print(f"  N={n:3d}: push -> all on loop {on_loop - pushed:7.1f} s (coordinates {planned - pushed:5.1f} s), "
               f"lower bound {bound:6.1f} s, ratio {(on_loop - pushed) / bound:4.2f}; "
-              f"fleet online after {online:5.1f} s wall")
+              f"time warp {warp:g}, fleet online after {online:5.1f} s wall")
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="3,10,30", help="fleet sizes (default 3,10,30)")
-    parser.add_argument("--warp", type=float, default=5.0, help="MOOSTimeWarp for the stack runs (default 5)")
+    parser.add_argument("--warp", type=float, default=None,
+                        help="MOOSTimeWarp for the stack runs (default: 10 up to 3 vehicles, 5 up to 10, else 2, "
+                             "so that 2 cores keep up)")
     parser.add_argument("--timeout", type=float, default=600.0, help="wall seconds allowed per step")
     parser.add_argument("--planner-only", action="store_true", help="skip the full-stack runs")
     args = parser.parse_args(argv)
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
     planner_figures(sizes)
     if not args.planner_only:
-        print(f"full stack (time warp {args.warp:g}, transit speed {TRANSIT_SPEED} m/s, stand-off {STANDOFF:g} m):")
+        print(f"full stack (transit speed {TRANSIT_SPEED} m/s, stand-off {STANDOFF:g} m):")
         for n in sizes:
+            warp = args.warp or (10.0 if n <= 3 else 5.0 if n <= 10 else 2.0)
             try:
-                asyncio.run(stack_figure(n, args.warp, args.timeout))
+                asyncio.run(stack_figure(n, warp, args.timeout))
             except (TimeoutError, RuntimeError) as exc:
                 print(f"  N={n:3d}: failed: {exc}")
     return 0
