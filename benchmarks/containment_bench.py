@@ -21,7 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
-from oilspill_moos.demo import OilspillMission, Observer, VEHICLE_SPACING, shipped_boundaries, wait_for
+from oilspill_moos.demo import (
+    VEHICLE_SPACING,
+    Observer,
+    OilspillMission,
+    shipped_boundaries,
+    vehicle_names,
+    wait_for,
+)
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
@@ -33,8 +40,7 @@ ORIGIN = (28.736667, -88.387222)
 
 
 def start_line(n: int) -> dict[str, tuple[float, float]]:
-    from oilspill_moos.demo import vehicle_names
-
+    """Where OilspillMission puts the vehicles by default (a line south of the origin)."""
     return {name: ((i - (n - 1) / 2) * VEHICLE_SPACING, 0.0) for i, name in enumerate(vehicle_names(n))}
 
 
