@@ -317,6 +317,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-s", "--strict", action="store_true", help="fail on any unexpanded macro")
     p.add_argument("-l", "--lenient", action="store_true", help="emit partially expanded lines")
     p.add_argument("--path", default="", help="include folders, colon-separated")
+    p.add_argument("-p", dest="folders", action="append", default=[],
+                   help="an include folder (repeatable; unlike MOOS-IvP's -p it consumes its argument)")
     p.add_argument("--tag", help="expand only this <tag> section of the input")
     p.add_argument("--macros", type=Path, help="a file of NAME=value lines")
     return p
@@ -331,7 +333,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("an output file is needed (or -t for the terminal)")
         defines = read_macro_file(args.macros) if args.macros else {}
         defines.update(parse_defines(words))
-        lines = preprocess(args.infile, defines, [p for p in args.path.split(":") if p], strict=args.strict,
+        folders = [p for p in args.path.split(":") if p] + args.folders
+        lines = preprocess(args.infile, defines, folders, strict=args.strict,
                            tag=args.tag, lenient=args.lenient)
     except (OSError, ValueError) as exc:   # MissionFileError is a ValueError: file:line: message
         print(f"nsplug: {exc}", file=sys.stderr)

@@ -253,7 +253,7 @@ def test_command_line_like_nsplug(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "targ.moos").read_text() == "Community = abe\nMOOSTimeWarp = 10\n\nx = $(NOPE) $(VNAME)\n\n"
     assert nsplug_main(["meta.moos", "targ.moos", "--path=inc", "VNAME=abe"]) == 1   # exists, no -f
     assert "not overwritten (use -f)" in capsys.readouterr().err
-    assert nsplug_main(["meta.moos", "-t", "-l", "--path=inc", "VNAME=abe", "WARP=2"]) == 0
+    assert nsplug_main(["meta.moos", "-t", "-l", "-p", "inc", "VNAME=abe", "WARP=2"]) == 0
     assert capsys.readouterr().out == "Community = abe\nMOOSTimeWarp = 2\n\nx = $(NOPE) abe\n\n"
     assert nsplug_main(["meta.moos", "targ.moos", "-f", "-s", "--path=inc", "VNAME=abe", "WARP=2"]) == 1
     assert f"nsplug: meta.moos:3: unexpanded macro in: x = $(NOPE) abe" in capsys.readouterr().err
