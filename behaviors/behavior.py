@@ -123,6 +123,7 @@ class IvPBehavior:
         self.completed = False
         self.posts: list[Post] = []
         self.last_update = ""
+        self.good_updates = self.bad_updates = 0
         self.now = 0.0
         self._first_macro_time: float | None = None
         self._counter = 0

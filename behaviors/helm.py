@@ -289,7 +289,9 @@ class Helm:
         if bad:
             bhv.post("BHV_WARNING", f"Faulty update for behavior: {bhv.name}. Bad parameter(s): {','.join(bad)}",
                      repeatable=True)
+            bhv.bad_updates += 1
             return "param_error"
+        bhv.good_updates += 1
         bhv.last_update = text
         bhv.post_flags("configflag")
         bhv.on_update_applied()
@@ -322,9 +324,10 @@ class Helm:
                                  for v in self.info.deltas.get(dur.reset_var, [])):
             dur.reset(now)
         prev = bhv.state
+        failed = next((c for c in bhv.conditions if not c.evaluate(self.info.get)), None)
         if bhv.completed:
             state = "completed"
-        elif not all(c.evaluate(self.info.get) for c in bhv.conditions):
+        elif failed is not None:
             state = "idle"
         else:
             state = "running"
@@ -376,6 +379,9 @@ class Helm:
         if bhv.completed:
             state, fn = "completed", None
         bhv.state = state
+        status = f"name={bhv.name}" + (f",pc={failed}" if failed is not None and state == "idle" else "")
+        status += f",updates={bhv.good_updates}/{bhv.good_updates + bhv.bad_updates},state={state}"
+        bhv.post("BHV_STATUS", status + (f",pwt={bhv.pwt:g}" if fn is not None else ""))
         return fn
 
     def _starved(self, bhv: IvPBehavior, now: float) -> bool:

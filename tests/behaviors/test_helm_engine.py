@@ -120,6 +120,8 @@ def test_modes_follow_the_set_entries(domain):
     run(helm, Boat(), 6, pokes=pokes, log=log)
     assert [val for _, v, val in log if v == "MODE"] == ["INACTIVE", "ACTIVE:STATION-KEEPING", "ACTIVE:RETURNING"]
     assert [val for _, v, val in log if v == "STATIONING"] == ["false", "true", "false"]
+    assert "name=station-keep,pc=MODE==STATION-KEEPING,updates=0/0,state=idle" in [
+        val for _, v, val in log if v == "BHV_STATUS"]
 
 
 def test_station_keep_settles_inside_outer_radius_under_current(domain):

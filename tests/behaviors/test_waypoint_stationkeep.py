@@ -138,6 +138,9 @@ def test_updates_results_and_wptflag_dedup(domain, make_bhv):
         (k, v) for k, v, _ in posts]
     assert [v for k, v, _ in posts if k == "DONE"] == [0.0]
     assert any(k == "IVPHELM_LIFE_EVENT" and "event=death" in v for k, v, _ in posts)
+    status = [v for k, v, _ in posts if k == "BHV_STATUS"]
+    assert "name=w,updates=0/0,state=active,pwt=100" in status
+    assert status[-1] == "name=w,updates=1/2,state=completed"
 
 
 def test_duration_completes_and_reset(domain, make_bhv):
