@@ -546,7 +546,7 @@ class MOOSDB:
                 value = _size(len(last.binary))
             else:
                 value = last.string if len(last.string) <= 25 else last.string[:22] + "..."
-            lines.append(f"{name:<20} {stamp:<20} {writer:<20} {var.freq:4.1f}Hz {var.data_type:<2} {value}\n")
+            lines.append(f"{name:<20} {stamp:<20} {writer:<20} {var.freq:4.1f} Hz {var.data_type:<2} {value}\n")
         return "".join(lines)
 
 

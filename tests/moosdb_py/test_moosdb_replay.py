@@ -74,23 +74,23 @@ async def replay(cap: dict, db: MOOSDB, pace: float | None = None, until: float 
         conn = unit["conn"]
         if conn not in clients:
             clients[conn] = ReplayClient(*await asyncio.open_connection(db.host, db.port))
-            sides[conn] = await async_wait_until(lambda: _db_side(db, clients[conn]), 2)
+            sides[conn] = await async_wait_until(lambda: _db_side(db, clients[conn]), 5)
         client, side = clients[conn], sides[conn]
         if unit["kind"] == "close":
             client.writer.close()
-            await async_wait_until(lambda: side.state == "closed", 2)
+            await async_wait_until(lambda: side.state == "closed", 5)
         elif unit["dir"] == "s2c":
             if not wait_replies:
                 continue
             expected[conn] = expected.get(conn, 0) + unit["decoded"]["num_msgs"]
-            await async_wait_until(lambda: len(client.mail) >= expected[conn] or client.closed_at, 2)
+            await async_wait_until(lambda: len(client.mail) >= expected[conn] or client.closed_at, 5)
         elif unit["kind"] == "protocol":
             client.send(unit["text"].encode("latin-1").ljust(32, b"\0"))
-            await async_wait_until(lambda: side.packets_in, 2)
+            await async_wait_until(lambda: side.packets_in, 5)
         else:
             before = side.packets_in
             client.send(bytes.fromhex(unit["hex"]))
-            await async_wait_until(lambda: side.packets_in > before or side.state == "closed", 2)
+            await async_wait_until(lambda: side.packets_in > before or side.state == "closed", 5)
     return clients
 
 
@@ -132,7 +132,7 @@ def test_replay_gives_captured_replies(path):
         clients = await replay(cap, db)
         for conn, client in clients.items():
             want = [_comparable(m) for m in _captured_mail(cap, conn)]
-            await async_wait_until(lambda: len(client.mail) >= len(want), 2)
+            await async_wait_until(lambda: len(client.mail) >= len(want), 5)
             got = [_comparable(_as_dict(m)) for _, m in client.mail]
             assert got == want, f"conn {conn}"
             if any(c.get("event") == "s2c_closed" and c["conn"] == conn and
@@ -155,7 +155,7 @@ def test_disconnect_events_are_delivered_promptly():
         watcher = clients[1]
         events = ["connected=watcher", "connected=graceful", "connected=crasher",
                   "disconnected=graceful", "disconnected=crasher"]
-        await async_wait_until(lambda: _values(watcher, "DB_EVENT") == events, 2)
+        await async_wait_until(lambda: _values(watcher, "DB_EVENT") == events, 5)
         assert set(_values(watcher, "DB_CLIENTS")) <= {"watcher,", "graceful,watcher,", "crasher,graceful,watcher,",
                                                        "crasher,watcher,"}
     _run(scenario)
@@ -168,7 +168,7 @@ def test_db_variables_refresh_without_traffic():
     async def scenario(db):
         watch = (await replay(cap, db, until=0.5, wait_replies=False))[1]
         assert _values(watch, "DB_EVENT")[0] == "connected=watch"
-        await async_wait_until(lambda: _values(watch, "DB_RWSUMMARY") and _values(watch, "DB_QOS"), 2)
+        await async_wait_until(lambda: _values(watch, "DB_RWSUMMARY") and _values(watch, "DB_QOS"), 5)
         assert _values(watch, "DB_CLIENTS")[-1] == "watch,"
         assert _values(watch, "DB_RWSUMMARY")[-1] == \
             "watch=DB_CLIENTS:DB_EVENT:DB_QOS:DB_RWSUMMARY:DB_TIME:DB_UPTIME:DB_VARSUMMARY&A"
@@ -176,7 +176,9 @@ def test_db_variables_refresh_without_traffic():
         summary = _values(watch, "DB_VARSUMMARY")[-1].splitlines()
         assert [line.split()[0] for line in summary] == sorted(db.vars)
         a_line = next(line for line in summary if line.startswith("A "))
-        assert a_line.split()[2:] == ["watch", "D", "1"] or a_line.split()[-2:] == ["D", "1"]
+        assert a_line.split()[2] == "watch" and a_line.split()[-3:] == ["Hz", "D", "1"]
+        db_line = next(line for line in summary if line.startswith("DB_CLIENTS "))
+        assert db_line[:21] == f"{'DB_CLIENTS':<20} " and db_line[42:63] == f"{'MOOSDB_#1':<20} "
         assert _values(watch, "DB_UPTIME")[-1] > 0 and _values(watch, "DB_TIME")[-1] > 1e9
     _run(scenario, refresh_period=0.2)
 
@@ -186,12 +188,12 @@ def test_register_interval_throttles_by_dropping():
     cap = load_capture(next(p for p in conformance_files() if p.stem == "14_register_interval"))
 
     async def scenario(db):
+        began = time.monotonic()
         slow = (await replay(cap, db, pace=0.1, wait_replies=False))[1]
-        got = [(t, m.double) for t, m in slow.mail if m.key == "FAST"]
-        assert got[0][1] == 0.0 and 2 <= len(got) <= 4
-        assert [v for _, v in got] == sorted(v for _, v in got)
-        assert all(b[0] - a[0] >= 0.1 - 0.02 for a, b in zip(got, got[1:]))
-        assert all(b[1] - a[1] >= 7 for a, b in zip(got, got[1:]))   # about 10 values per second are dropped
+        elapsed = time.monotonic() - began          # 1 warped second = 0.1 s here
+        got = [m.double for _, m in slow.mail if m.key == "FAST"]
+        assert got[0] == 0.0 and got == sorted(set(got))
+        assert 2 <= len(got) <= elapsed / 0.1 + 1   # the other writes were dropped, not delayed
     _run(scenario, time_warp=10.0)
 
 
@@ -202,7 +204,7 @@ def test_silent_client_is_dropped_after_timeout():
     async def scenario(db):
         clients = await replay(cap, db, pace=1.0, until=1.8, wait_replies=False)
         watcher, sleepy = clients[1], clients[2]
-        assert sleepy.closed_at is not None and 0.9 <= sleepy.closed_at - sleepy.mail[0][0] <= 1.6
+        assert sleepy.closed_at is not None and 0.9 <= sleepy.closed_at - sleepy.mail[0][0] <= 2.5
         assert watcher.closed_at is None and "watcher" in db.clients
         await async_wait_until(lambda: "disconnected=sleepy" in _values(watcher, "DB_EVENT"), 1)
     _run(scenario, client_timeout=1.0)
