@@ -16,7 +16,7 @@ from .bhv_waypoint import BHV_Waypoint
 from .geometry import GeometryError, distance, format_seglist, parse_point, parse_polygon
 from .ivp_function import IvPFunction
 
-SHARED_WITH_WAYPOINT = {"speed", "speed_alt", "use_alt_speed", "capture_radius", "radius", "slip_radius",
+SHARED_WITH_WAYPOINT = {"post_suffix", "speed", "speed_alt", "use_alt_speed", "capture_radius", "radius", "slip_radius",
                         "nm_radius", "ipf_type", "ipf-type", "crs_spd_zaic_ratio", "patience", "visual_hints"}
 
 
@@ -53,9 +53,6 @@ class BHV_Loiter(BHV_Waypoint):
                 self.center_activate = parse_bool(value, key)
             elif key in ("center_assign", "xcenter_assign", "ycenter_assign"):
                 self._assign_center(key, low)
-            elif key == "post_suffix":
-                self.status_var, self.index_var, self.cycle_var = (f"{v}_{value.upper()}" for v in (
-                    "LOITER_REPORT", "LOITER_INDEX", "LOITER_CYCLES"))
             elif key in SHARED_WITH_WAYPOINT:
                 return super().set_param(key, value)
             else:

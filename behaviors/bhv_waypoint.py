@@ -35,6 +35,7 @@ class BHV_Waypoint(IvPBehavior):
         self.ratio, self.ipf_type = 50.0, "zaic"
         self.end_spd: tuple[float, float] | None = None
         self.status_var, self.index_var, self.cycle_var = "WPT_STAT", "WPT_INDEX", "CYCLE_INDEX"
+        self.suffix = ""
         self.dist_prev_var = self.dist_next_var = ""
         self.wptflag_on_start = self.wptflags_posted = self.reset_on_idle = False
         self.point_start = False
@@ -132,8 +133,9 @@ class BHV_Waypoint(IvPBehavior):
             elif key == "wpt_dist_to_next":
                 self.dist_next_var = value
             elif key == "post_suffix":
-                self.status_var, self.index_var, self.cycle_var = (f"{v}_{value.upper()}" for v in
-                                                                   (self.status_var, self.index_var, self.cycle_var))
+                if any(c.isspace() for c in value):
+                    raise ValueError("post_suffix must not contain blanks")
+                self.suffix = value if not value or value.startswith("_") else "_" + value
             elif key == "wptflag_on_start":
                 self.wptflag_on_start = parse_bool(value, key)
             elif key in ("ipf_type", "ipf-type"):
@@ -296,6 +298,11 @@ class BHV_Waypoint(IvPBehavior):
                       self.ratio, 100 - self.ratio, self.pwt)
 
     # ---- life cycle ---------------------------------------------------------------------
+    def post_report(self, var: str, value, **kw) -> None:
+        """A status/index/cycle post: `silent` suppresses it, post_suffix is appended."""
+        if var.lower() != "silent":
+            self.post(var + self.suffix, value, **kw)
+
     def post_point(self, label: str, x: float, y: float, active: bool) -> None:
         self.post("VIEW_POINT", f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},"
                   f"active={str(active).lower()}", key=label)
@@ -330,7 +337,7 @@ class BHV_Waypoint(IvPBehavior):
         target_before = tuple(self.points[self.ix])
         result = self.advance(osx, osy)
         if result in ("cycled", "completed"):
-            self.post(self.status_var, f"behavior-name={self.name},{result}", key="end", repeatable=True)
+            self.post_report(self.status_var, f"behavior-name={self.name},{result}", key="end", repeatable=True)
             self.post_flags("cycleflag")
         target_changed = tuple(self.points[self.ix]) != target_before
         if result != "in-transit" or target_changed or (self.wptflag_on_start and not self.wptflags_posted):
@@ -338,8 +345,8 @@ class BHV_Waypoint(IvPBehavior):
                 self.prev = target_before
             self.wptflags_posted = True
             self.post_flags("wptflag")
-        self.post(self.index_var, float(self.ix))
-        self.post(self.cycle_var, float(self.cycles))
+        self.post_report(self.index_var, float(self.ix))
+        self.post_report(self.cycle_var, float(self.cycles))
         if result == "completed":
             self.set_complete()
             if self.perpetual:
@@ -349,7 +356,7 @@ class BHV_Waypoint(IvPBehavior):
         dist = float(distance(osx, osy, nx, ny))
         eta = dist / speed if speed and speed > 0 else 0.0
         hits = self.capture_hits + self.slip_hits
-        self.post(self.status_var, f"vname={self.ownship},behavior-name={self.name},index={self.ix},"
+        self.post_report(self.status_var, f"vname={self.ownship},behavior-name={self.name},index={self.ix},"
                   f"hits={self.capture_hits}/{hits},cycles={self.cycles},dist={dist:.0f},eta={eta:.0f}")
         if self.dist_next_var:
             self.post(self.dist_next_var, round(dist, 2))

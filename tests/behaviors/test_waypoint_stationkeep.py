@@ -223,3 +223,11 @@ def test_hibernation_after_the_approach_stops_closing(domain):
     at(info, 25, 0)
     sk.on_run_state()
     assert sk.pskeep == "seeking_station" and sk.desired_speed(25) == sk.transit_speed
+
+
+def test_post_suffix_and_silent_status(domain):
+    w, info = waypoint(domain, points="0,50", post_suffix="b", wpt_index="silent")
+    at(info, 0, 0)
+    w.on_run_state()
+    names = {p.var for p in w.posts}
+    assert {"WPT_STAT_b", "CYCLE_INDEX_b"} <= names and not any(n.startswith(("WPT_INDEX", "silent")) for n in names)
