@@ -530,18 +530,20 @@ class MOOSDB:
         return f"{recent:g}:{high:g}:{low:g}:{total / count:g}"
 
     def var_summary(self) -> str:
+        """DB_VARSUMMARY in the C++ DB's layout; its own variables show their creation until written."""
         lines = []
         for name in sorted(self.vars):
             var = self.vars[name]
-            written = var.written
             last = var.last
-            stamp = _time.strftime("%H:%M:%S", _time.localtime(var.written_time)) + \
-                f".{int(var.written_time * 1000) % 1000:03d}" if written else ""
-            writer = last.source if written else "(write pending)"
-            if not written:
+            known = var.written or bool(var.wire)
+            when = var.written_time if var.written else last.time
+            stamp = (_time.strftime("%H:%M:%S", _time.localtime(when)) + f".{int(when * 1000) % 1000:03d}"
+                     if known else "")
+            writer = last.source if known else "(write pending)"
+            if not var.written:
                 value = ""
             elif var.data_type == DOUBLE:
-                value = f"{last.double:g}"
+                value = f"{last.double:.1f}"
             elif var.data_type == BINARY:
                 value = _size(len(last.binary))
             else:

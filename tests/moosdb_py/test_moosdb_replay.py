@@ -176,7 +176,7 @@ def test_db_variables_refresh_without_traffic():
         summary = _values(watch, "DB_VARSUMMARY")[-1].splitlines()
         assert [line.split()[0] for line in summary] == sorted(db.vars)
         a_line = next(line for line in summary if line.startswith("A "))
-        assert a_line.split()[2] == "watch" and a_line.split()[-3:] == ["Hz", "D", "1"]
+        assert a_line.split()[2] == "watch" and a_line.split()[-3:] == ["Hz", "D", "1.0"]
         db_line = next(line for line in summary if line.startswith("DB_CLIENTS "))
         assert db_line[:21] == f"{'DB_CLIENTS':<20} " and db_line[42:63] == f"{'MOOSDB_#1':<20} "
         assert _values(watch, "DB_UPTIME")[-1] > 0 and _values(watch, "DB_TIME")[-1] > 1e9
