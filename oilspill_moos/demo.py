@@ -30,6 +30,7 @@ from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line, parse_polygon_spec, parse_report
 from oilspill_moos.planner import containment_region
+from oilspill_moos.viewer.app import viewer_beside
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION_DIR = REPO / "missions" / "oilspill"
@@ -286,11 +287,12 @@ def shipped_boundaries() -> list[bytes]:
 
 
 async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, timeout: float,
-                   cycles: list[list[bytes]], origin: str, starts: list[tuple[float, float]] | None) -> dict:
+                   cycles: list[list[bytes]], origin: str, starts: list[tuple[float, float]] | None,
+                   viewer_port: int | None = None) -> dict:
     mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, starts=starts,
                               operating_radius=0.0 if origin.startswith("forecaster") else 20000.0)
     report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": origin, "cycles": []}
-    with mission:
+    with mission, viewer_beside(mission.folder / mission.shoreside.moos_file, viewer_port):
         observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
         client_task = asyncio.create_task(observer.client.run())
         try:
@@ -441,6 +443,8 @@ def main(argv: list[str] | None = None) -> int:
                              "weights exist (default auto)")
     parser.add_argument("--weights", type=Path, default=None,
                         help="forecaster weights folder (default: the ones shipped with the forecaster)")
+    parser.add_argument("--viewer", type=int, nargs="?", const=8080, default=None, metavar="PORT",
+                        help="watch it live: pMarineViewer on http://127.0.0.1:PORT/ (default 8080)")
     args = parser.parse_args(argv)
     if args.warp <= 0 or args.vehicles < 1:
         parser.error("--warp must be > 0 and --vehicles >= 1")
@@ -451,7 +455,7 @@ def main(argv: list[str] | None = None) -> int:
         cycles, origin = boundary_source(weights if use else None, args.timeout)
         starts = stations_around(cycles, args.vehicles, STANDOFF) if origin.startswith("forecaster") else None
         report = asyncio.run(run_demo(args.out, args.vehicles, args.warp, args.loop_time, args.timeout,
-                                      cycles, origin, starts))
+                                      cycles, origin, starts, args.viewer))
     except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
         print(f"demo: {exc}", file=sys.stderr)
         return 1
@@ -459,6 +463,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"boundary {cycle['boundary']}: push -> all on the loop in {cycle['push_to_loop_s']:.1f} mission s "
               f"(station-keeping {cycle['station_keeping_s']:.1f} s, transit {cycle['transit_s']:.1f} s)")
     print(f"demo: done in {time.monotonic() - started:.0f} s; report in {args.out}/ (tracks.png, timeline.json)")
+    run = args.out / "run"
+    print(f"replay it in the browser: pMarineViewer {run / 'targ_shoreside.moos'} "
+          f"--replay={run / 'logs' / 'LOG_SHORESIDE' / 'LOG_SHORESIDE.alog'}")
     return 0
 
 

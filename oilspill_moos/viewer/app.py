@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import asyncio
 import bisect
+import contextlib
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -336,6 +338,26 @@ def replay_main(alog: Path, rest: list[str], port: int | None) -> int:
         print(f"pMarineViewer: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+@contextlib.contextmanager
+def viewer_beside(mission_file: Path, http_port: int | None):
+    """pMarineViewer as its own process on a running mission's shoreside file (the demo's `--viewer`);
+    it prints its URL. Nothing is started when `http_port` is None."""
+    if http_port is None:
+        yield None
+        return
+    process = subprocess.Popen([str(Path(sys.executable).parent / "pMarineViewer"), Path(mission_file).name,
+                                f"--http_port={http_port}"], cwd=Path(mission_file).parent)
+    try:
+        yield process
+    finally:
+        process.terminate()
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
 
 
 main = MarineViewer.main

@@ -48,6 +48,7 @@ class Browser:
             raise BrowserError("no chromium on PATH (Debian: apt-get install chromium)")
         self._ids = itertools.count(1)
         self._pending: dict[int, asyncio.Future] = {}
+        self._loaded: list[asyncio.Future] = []
         self.console: list[str] = []
 
     async def __aenter__(self) -> "Browser":
@@ -94,6 +95,11 @@ class Browser:
             future = self._pending.pop(message.get("id", -1), None)
             if future is not None and not future.done():
                 future.set_result(message)
+            elif message.get("method") == "Page.loadEventFired":
+                for waiter in self._loaded:
+                    if not waiter.done():
+                        waiter.set_result(None)
+                self._loaded = []
             elif message.get("method") == "Runtime.consoleAPICalled":
                 args = message["params"].get("args", [])
                 self.console.append(" ".join(str(a.get("value", a.get("description", ""))) for a in args))
@@ -113,8 +119,14 @@ class Browser:
             raise BrowserError(f"{method}: {reply['error'].get('message')}")
         return reply.get("result", {})
 
-    async def goto(self, url: str) -> None:
-        await self.send("Page.navigate", session=True, url=url)
+    async def goto(self, url: str, timeout: float = 30.0) -> None:
+        """Open `url` and wait for its load event (the page's scripts have run)."""
+        loaded = asyncio.get_running_loop().create_future()
+        self._loaded.append(loaded)
+        reply = await self.send("Page.navigate", session=True, url=url)
+        if reply.get("errorText"):
+            raise BrowserError(f"{url}: {reply['errorText']}")
+        await asyncio.wait_for(loaded, timeout)
 
     async def evaluate(self, expression: str):
         """The JSON value of a JavaScript expression in the page."""
