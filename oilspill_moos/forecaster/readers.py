@@ -149,7 +149,7 @@ def read_geojson(path, *, crs=None, repair: bool = True) -> PolygonFile:
         try:
             with np.errstate(invalid="ignore"):  # NaN coordinates are reported by _clean, by feature
                 geometry = shape(geom)
-        except (ValueError, TypeError, KeyError, AttributeError, shapely.errors.ShapelyError) as exc:
+        except (ValueError, TypeError, KeyError, IndexError, AttributeError, shapely.errors.ShapelyError) as exc:
             raise PolygonFileError(path, f"malformed geometry ({exc})", index) from None
         parts = _clean(path, index, geometry, repair, repaired)
         if not parts:

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pyproj
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 import shapefile
 import shapely
@@ -163,6 +163,7 @@ geojson_like = st.fixed_dictionaries({
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(doc=geojson_like | json_values)
+@example(doc={"type": "MultiPolygon", "coordinates": [[], [[0.0]]]})  # once crashed shapely with IndexError
 def test_any_json_gives_polygons_or_a_polygon_file_error(tmp_path, doc):
     path = tmp_path / "fuzz.geojson"
     path.write_text(json.dumps(doc))
