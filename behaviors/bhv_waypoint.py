@@ -309,6 +309,9 @@ class BHV_Waypoint(IvPBehavior):
 
     def on_run_to_idle(self) -> None:
         self.cpa = None
+        for var in (self.dist_prev_var, self.dist_next_var):
+            if var:
+                self.post(var, -1.0)
         if len(self.points):
             for label in ("nextpt", "trackpt"):
                 self.post_point(label, *self.points[self.ix], active=False)

@@ -231,3 +231,14 @@ def test_post_suffix_and_silent_status(domain):
     w.on_run_state()
     names = {p.var for p in w.posts}
     assert {"WPT_STAT_b", "CYCLE_INDEX_b"} <= names and not any(n.startswith(("WPT_INDEX", "silent")) for n in names)
+
+
+def test_distance_posts_and_their_idle_value(domain):
+    w, info = waypoint(domain, points="0,50:0,100", wpt_dist_to_next="TO_NEXT", wpt_dist_to_prev="TO_PREV")
+    at(info, 0, 10)
+    w.on_run_state()
+    posted = {p.var: p.value for p in w.posts}
+    assert (posted["TO_NEXT"], posted["TO_PREV"]) == (40, 0)
+    w.posts = []
+    w.on_run_to_idle()
+    assert {p.var: p.value for p in w.posts if p.var.startswith("TO_")} == {"TO_NEXT": -1, "TO_PREV": -1}
