@@ -19,7 +19,7 @@ import time as _time
 from dataclasses import dataclass, field
 
 from . import codec
-from .message import (ASYNC_TIMING_KEY, BINARY, COMMAND, DOUBLE, NOT_SET, NOTIFY, NULL_MSG, POISON, REGISTER,
+from .message import (BINARY, COMMAND, DOUBLE, NOT_SET, NOTIFY, NULL_MSG, POISON, REGISTER,
                       SERVER_REQUEST, STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER,
                       WILDCARD_UNREGISTER, MOOSMsg, moos_time)
 
