@@ -205,7 +205,7 @@ def test_loiter_acquires_then_circles_the_lab_polygon(corpus, domain):
                 active_start=True)
     helm.startup(0.0)
     boat, log = Boat(80, 0, 180), []
-    run(helm, boat, 400, log=log)                       # initialize DEPLOY = true, LOITER = true
+    run(helm, boat, 400, dt=0.5, log=log)               # initialize DEPLOY = true, LOITER = true
     assert [val for _, v, val in log if v == "MODE"] == ["ACTIVE:LOITERING"]
     assert [val for _, v, val in log if v == "LOITER_ACQUIRE"][:2] == [1.0, 0.0]
     assert max(val for _, v, val in log if v == "LOITER_CYCLES_A") >= 2
