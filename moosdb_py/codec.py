@@ -40,7 +40,8 @@ def _text(value: str) -> bytes:
         return value.encode("utf-8")
 
 
-def _field(data: bytes) -> bytes:
+def string_field(data: bytes) -> bytes:
+    """A string as it sits in a message: int32 length, then the bytes."""
     return _INT.pack(len(data)) + data if data else _EMPTY_STR
 
 
@@ -50,9 +51,9 @@ def encode_message(msg: MOOSMsg) -> bytes:
     length = MIN_MESSAGE_SIZE + len(src) + len(aux) + len(comm) + len(key) + len(sval)
     return b"".join((
         _MSG_HEAD.pack(length, msg.id, msg.msg_type.encode("latin-1"), msg.data_type.encode("latin-1")),
-        _field(src), _field(aux), _field(comm), _field(key),
+        string_field(src), string_field(aux), string_field(comm), string_field(key),
         _DOUBLES.pack(msg.time, msg.double, msg.double_aux),
-        _field(sval),
+        string_field(sval),
     ))
 
 
@@ -129,12 +130,10 @@ def decode_message(buf: bytes, pos: int = 0) -> tuple[MOOSMsg, int]:
     return msg, end
 
 
-def fill_community(buf: bytes, where: WireMsg, community: bytes) -> bytes:
-    """The message with its (empty) community set: a splice, the rest of the bytes untouched."""
-    at = where.community_at
-    return b"".join((_INT.pack(where.end - where.start + len(community) - where.community_len),
-                     buf[where.start + 4:at], _INT.pack(len(community)), community,
-                     buf[at + 4 + where.community_len:where.end]))
+def fill_community(buf: bytes, where: WireMsg, community_field: bytes) -> bytes:
+    """The message (community empty) with `string_field(community)` put in: a splice, the rest untouched."""
+    at, start, end = where.community_at, where.start, where.end
+    return _INT.pack(end - start + len(community_field) - 4) + buf[start + 4:at] + community_field + buf[at + 4:end]
 
 
 def with_id(wire: bytes, msg_id: int) -> bytes:

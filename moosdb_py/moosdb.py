@@ -170,11 +170,11 @@ class ClientConnection(asyncio.Protocol):
         self.db.admit(self, msgs[0])
 
     # -- output -------------------------------------------------------------------------------
-    def queue(self, wire: bytes) -> None:
+    def queue(self, wires: list[bytes]) -> None:
         if self.state == "closed":
             return
-        self.held.append(wire)
-        self.held_bytes += len(wire)
+        self.held += wires
+        self.held_bytes += sum(map(len, wires))
         if self.asynchronous:
             self.db.dirty[self] = None
         elif self.held_bytes > self.db.max_queue:
@@ -222,7 +222,7 @@ class MOOSDB:
                  max_packet: int = codec.DEFAULT_MAX_PACKET, max_queue: int = DEFAULT_MAX_QUEUE,
                  response: list[tuple[str, float]] = (), refresh_period: float = REFRESH_PERIOD):
         self.host, self.port, self.community = host, port, community
-        self.community_bytes = community.encode("latin-1")
+        self.community_field = codec.string_field(community.encode("latin-1"))
         self.name = f"MOOSDB_{community}"
         self.time_warp = time_warp
         self.client_timeout = client_timeout
@@ -360,17 +360,26 @@ class MOOSDB:
         if not conn.asynchronous:   # a synchronous client gets one reply per packet, NULL first
             head.insert(0, codec.encode_message(MOOSMsg(NULL_MSG, DOUBLE, double=now)))
         replies: list[bytes] = []
-        community = self.community_bytes
-        published = conn.published
+        community = self.community_field
+        run: list[bytes] = []       # consecutive writes of one variable by one source go as a batch
+        first: codec.WireMsg | None = None
         for where in found:
             mtype = where.msg_type
             if mtype == NOTIFY:
-                if where.key not in published:
-                    published.add(where.key)
-                wire = (codec.fill_community(packet, where, community) if where.community_len == 0
-                        else packet[where.start:where.end])
-                self.notify(where.key, where.data_type, where.source, wire, now)
-            elif mtype in (COMMAND, NULL_MSG):
+                if run and (where.key != first.key or where.source != first.source
+                            or where.data_type != first.data_type):
+                    self.notify(first.key, first.data_type, first.source, run, now)
+                    run = []
+                if not run:
+                    first = where
+                    conn.published.add(where.key)
+                run.append(codec.fill_community(packet, where, community) if where.community_len == 0
+                           else packet[where.start:where.end])
+                continue
+            if run:
+                self.notify(first.key, first.data_type, first.source, run, now)
+                run = []
+            if mtype in (COMMAND, NULL_MSG):
                 continue
             else:
                 msg = codec.decode_message(packet, where.start)[0]
@@ -384,13 +393,18 @@ class MOOSDB:
                     replies[:0] = self.server_request(msg, now)
                 else:
                     log.debug("%s: ignoring message type %r", conn, mtype)
+        if run:
+            self.notify(first.key, first.data_type, first.source, run, now)
         self.refresh_if_due()
         out = head + replies + conn.take_held()
         if out:
             conn.send(codec.pack_packet(out))
 
-    def notify(self, key: str, data_type: str, source: str, wire: bytes, now: float) -> None:
-        """Store a write (its bytes as they will be forwarded) and queue it for the subscribers."""
+    def notify(self, key: str, data_type: str, source: str, wires: list[bytes], now: float) -> None:
+        """Store writes of `key` by `source` (as the bytes to forward) and queue them for the subscribers.
+
+        All arrived in one packet, so at one DB time: a throttled subscriber gets the first only.
+        """
         var = self.vars.get(key)
         if var is None:
             var = self.vars[key] = DBVar(key, window_start=now)
@@ -401,21 +415,23 @@ class MOOSDB:
             log.info("rejected write of %s by %s: %s is of type %s, not %s", key, source, key, var.data_type,
                      data_type)
             return
-        var.wire = wire
+        var.wire = wires[-1]
         var.source = source
         var.written_time = now
-        var.window_writes += 1
+        var.window_writes += len(wires)
         for conn, sub in var.subscribers.items():
-            if sub[0] <= 0.0 or now - sub[1] >= sub[0]:
+            if sub[0] <= 0.0:
+                conn.queue(wires)
+            elif now - sub[1] >= sub[0]:
                 sub[1] = now
-                conn.queue(wire)
+                conn.queue(wires[:1])
 
     def post(self, key: str, value: float | str) -> None:
         """A notify by the DB itself (its DB_* variables)."""
         now = self.now()
         msg = MOOSMsg.notification(key, value, time=now, source=self.name)
         msg.community = self.community
-        self.notify(key, msg.data_type, self.name, codec.encode_message(msg), now)
+        self.notify(key, msg.data_type, self.name, [codec.encode_message(msg)], now)
 
     def register(self, conn: ClientConnection, key: str, interval: float) -> None:
         if not conn.name:
@@ -428,7 +444,7 @@ class MOOSDB:
         conn.subscribed.add(key)
         if var.written:
             sub[1] = self.now()
-            conn.queue(var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1))
+            conn.queue([var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1)])
 
     def unregister(self, conn: ClientConnection, key: str) -> None:
         var = self.vars.get(key)

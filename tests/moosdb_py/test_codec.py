@@ -66,7 +66,7 @@ def test_splices_equal_full_encodings():
     packet = codec.encode_packet([MOOSMsg(), msg])
     where = codec.scan_packet(packet)[1]
     assert (where.msg_type, where.data_type, where.source, where.key) == ("N", "S", "pub", "X")
-    spliced = codec.fill_community(packet, where, b"#1")
+    spliced = codec.fill_community(packet, where, codec.string_field(b"#1"))
     msg.community = "#1"
     assert spliced == codec.encode_message(msg)
     msg.id = -1

@@ -95,3 +95,21 @@ def test_help_and_bad_mission(tmp_path):
     bad.write_text("ServerPort = not_a_port\n")
     out = subprocess.run([sys.executable, "-m", "moosdb_py.moosdb", str(bad)], capture_output=True, text=True)
     assert out.returncode == 1 and "bad.moos:1" in out.stderr
+
+
+def test_writes_in_one_packet_keep_order_and_throttling(moosdb_server):
+    sub, slow = RawClient(moosdb_server.port, "all"), RawClient(moosdb_server.port, "slow")
+    sub.packet()
+    slow.packet()
+    sub.send(MOOSMsg("R", "D", "X", 0.0, source="all"), MOOSMsg("R", "D", "Y", 0.0, source="all"))
+    slow.send(MOOSMsg("R", "D", "X", 10.0, source="slow"), MOOSMsg("Q", "S", "VAR_SUMMARY", id=-2, source="slow"))
+    slow.packet()                         # the registrations are in
+    writes = [("X", 1.0), ("X", 2.0), ("Y", 1.0), ("X", 3.0), ("X", 4.0)]
+    sub.send(*(MOOSMsg.notification(k, v, time=1.0, source="all") for k, v in writes))
+    got = []
+    while len(got) < len(writes):
+        got += [(m.key, m.value) for m in sub.packet()]
+    assert got == writes
+    assert [(m.key, m.value) for m in slow.packet()] == [("X", 1.0)]   # one per 10 s: the rest dropped
+    sub.close()
+    slow.close()
