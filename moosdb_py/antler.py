@@ -409,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
         except (MissionFileError, ValueError) as exc:
             print(f"pAntler: {exc}; nothing started", file=sys.stderr)
             return 1
-        for problem in problems:
+        for problem in [*mission.warnings, *problems]:
             print(f"pAntler: {problem}", file=sys.stderr)
         if not specs:
             print("pAntler: nothing to launch", file=sys.stderr)

@@ -200,9 +200,9 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
         comms = asyncio.create_task(watcher.run())
         try:
             # the logger, the simulator and the helm are up and registered once their first posts are seen
-            await async_wait_until(lambda: {"LOGGER_DIRECTORY", "IVPHELM_STATE", "NAV_X"} <= latest.keys(), timeout=30)
+            await async_wait_until(lambda: {"LOGGER_DIRECTORY", "IVPHELM_STATE", "NAV_X"} <= latest.keys(), timeout=60)
             await tool("poke", "--port", port, "--warp", 4, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false")
-            await async_wait_until(lambda: latest.get("NAV_SPEED", 0) > 0.5 and latest["NAV_X"] > 1, timeout=30)
+            await async_wait_until(lambda: latest.get("NAV_SPEED", 0) > 0.5 and latest["NAV_X"] > 1, timeout=60)
             return await tool("xms", "--port", port, "--warp", 4, "DEPLOY", "DESIRED_SPEED", "IVPHELM_STATE", "--once")
         finally:
             watcher.close()
@@ -235,13 +235,14 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
 def test_an_app_with_a_bad_config_is_reported_with_its_error(tmp_path, free_port, one_process):
     path = tmp_path / "bad.moos"
     path.write_text(f"ServerPort = {free_port()}\nProcessConfig = ANTLER\n{{\n  MSBetweenLaunches = 10\n"
-                    "  Run = MOOSDB\n  Run = pLogger\n}\nProcessConfig = pLogger\n{\n  Log = NAV_X @ soon\n}\n")
+                    "  Run = MOOSDB\n  Run = pLogger\n}\nProcessConfig = pLogger\n{\n  Log = NAV_X @ soon\n}\nstray words\n")
     proc = pantler(path, *(["--one-process"] if one_process else []), cwd=tmp_path)
     output = Output(proc)
     try:
         reason = f"{path}:10: Log = 'NAV_X @ soon': period 'soon' is not a number"
         report = "pLogger (in-process) failed: " if one_process else "exited with code 1; last output:"
         wait_until(lambda: report in output.text and reason in output.text, timeout=20)
+        assert f"pAntler: {path}:12: ignored line outside any block: stray words" in output.text
         proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=15)
     finally:
