@@ -178,7 +178,7 @@ PUBLICATIONS:
         host, port = self.settings["boundary_host"], self.settings["boundary_port"]
         pusher = BoundaryPusher(host, port, connect_timeout=2.0, reply_timeout=5.0)
         try:
-            seq = await pusher.push(self.scene.boundary_text.strip() + "\n")
+            seq = await pusher.push((self.scene.boundary_text.strip() + "\n").encode("utf-8"))
             note = self.scene.note("poke", f"RE-PUSH: pPathAssign at {host}:{port} accepted it as boundary {seq}", now)
         except (PushRejected, PushUnreachable, ValueError) as exc:
             note = self.scene.note("error", f"RE-PUSH to {host}:{port}: {exc}", now)
@@ -341,14 +341,14 @@ def replay_main(alog: Path, rest: list[str], port: int | None) -> int:
 
 
 @contextlib.contextmanager
-def viewer_beside(mission_file: Path, http_port: int | None):
-    """pMarineViewer as its own process on a running mission's shoreside file (the demo's `--viewer`);
-    it prints its URL. Nothing is started when `http_port` is None."""
+def viewer_beside(mission_file: Path, http_port: int | None, *options: str):
+    """pMarineViewer as its own process on a running mission's shoreside file (the demo's `--viewer`;
+    `options` such as `--replay=FILE`); it prints its URL. Nothing is started when `http_port` is None."""
     if http_port is None:
         yield None
         return
     process = subprocess.Popen([str(Path(sys.executable).parent / "pMarineViewer"), Path(mission_file).name,
-                                f"--http_port={http_port}"], cwd=Path(mission_file).parent)
+                                f"--http_port={http_port}", *options], cwd=Path(mission_file).parent)
     try:
         yield process
     finally:

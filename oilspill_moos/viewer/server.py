@@ -90,7 +90,10 @@ class MapServer:
         except ValueError as exc:
             log.warning("page %s: bad command %r: %s", page.remote_address, raw[:80], exc)
             return
-        await self.on_command(command)
+        try:
+            await self.on_command(command)
+        except Exception:   # a failing command must not close the page's connection
+            log.exception("page %s: command %r failed", page.remote_address, command)
 
     def queue(self, updates: list[dict]) -> None:
         self.pending.extend(updates)

@@ -1,12 +1,11 @@
 """pMarineViewer end to end, as an operator uses it: a real headless Chromium loads the page of a
 running oil-spill mission (2 vehicles, time warp), watches the vehicles appear, clicks DEPLOY and
-sees their phase change, sees them move to the boundary pushed to pPathAssign, then replays the
-shoreside alog with the time slider. Screenshots are kept in artifacts/ (git-ignored).
+sees their phase change, sees them move to the boundary pushed to pPathAssign, re-pushes it and
+calls the fleet back with RETURN_ALL, then replays the shoreside alog with the time slider. Screenshots are kept in artifacts/ (git-ignored).
 """
 import asyncio
+import contextlib
 import json
-import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
@@ -16,41 +15,32 @@ import pytest
 from helpers import wait_until
 from oilspill_moos.demo import OilspillMission, free_port
 from oilspill_moos.forecaster.push import push_lines
+from oilspill_moos.viewer.app import viewer_beside
 from oilspill_moos.viewer.browser import Browser, find_chromium
 
 pytestmark = pytest.mark.skipif(find_chromium() is None, reason="no chromium on PATH (Debian package `chromium`); "
                                 "the browser tests need it and run in CI, where .ci/run installs it")
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
-BIN = Path(sys.executable).parent
 WARP = 10.0
-TIMEOUT = 30.0
+TIMEOUT = 45.0   # wall seconds for any one step (generous: CI shares two cores)
 SPILL = b"pts={-30,80:30,80:30,140:-30,140},label=viewer-test-spill\n"
 
 
-def start_viewer(args: list[str], cwd: Path) -> tuple[subprocess.Popen, str]:
+@contextlib.contextmanager
+def viewer(mission: OilspillMission, *options: str):
+    """pMarineViewer on the mission's shoreside file, as `make demo --viewer` runs it; yields the page URL."""
     port = free_port()
-    process = subprocess.Popen([str(BIN / "pMarineViewer"), *args, f"--http_port={port}"], cwd=cwd,
-                               stdout=subprocess.DEVNULL, stderr=open(cwd / f"viewer_{port}.err", "wb"))
     url = f"http://127.0.0.1:{port}/"
-
-    def serving():
-        assert process.poll() is None, (cwd / f"viewer_{port}.err").read_text()
-        try:
-            return urllib.request.urlopen(url, timeout=1).status == 200
-        except OSError:
-            return False
-    wait_until(serving, timeout=TIMEOUT, interval=0.1)
-    return process, url
-
-
-def stop(process: subprocess.Popen) -> None:
-    process.terminate()
-    try:
-        process.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
+    with viewer_beside(mission.folder / mission.shoreside.moos_file, port, *options) as process:
+        def serving():
+            assert process.poll() is None, f"pMarineViewer exited with {process.returncode} (stderr above)"
+            try:
+                return urllib.request.urlopen(url, timeout=1).status == 200
+            except OSError:
+                return False
+        wait_until(serving, timeout=TIMEOUT, interval=0.1)
+        yield url
 
 
 @pytest.fixture(scope="module")
@@ -71,13 +61,10 @@ def browser():
 def live(tmp_path_factory):
     mission = OilspillMission(tmp_path_factory.mktemp("viewer"), vehicles=2, warp=WARP, standoff=10.0)
     mission.start()
-    viewer = None
     try:
-        viewer, url = start_viewer([mission.shoreside.moos_file], mission.folder)
-        yield mission, url
+        with viewer(mission) as url:
+            yield mission, url
     finally:
-        if viewer is not None:
-            stop(viewer)
         mission.stop()
 
 
@@ -126,6 +113,11 @@ def test_operator_sees_the_fleet_deploys_it_and_watches_it_move(live, browser):
                     what="vehicles on their way")
         await until(browser, "viewerStats.frames > 5", what="frames drawn")
         await browser.screenshot(ARTIFACTS / "viewer_live.png")
+        await browser.click("#buttons button[data-label='RE-PUSH BOUNDARY']")
+        await until(browser, "document.getElementById('log').textContent.includes('accepted it as boundary 2')",
+                    what="pPathAssign's answer to RE-PUSH BOUNDARY in the log")
+        await browser.click("#buttons button[data-label='RETURN_ALL']")
+        await until(browser, f"{PHASES}.every(p => p === 'RETURNING')", what="the fleet returning")
         assert not [line for line in browser.console if line.startswith("exception")], browser.console
 
     browser.run(operator())
@@ -135,8 +127,7 @@ def test_finished_run_replays_with_the_time_slider(live, browser):
     mission, _ = live
     alog = mission.alog("shoreside")
     wait_until(lambda: alog.exists() and b"NODE_REPORT" in alog.read_bytes(), timeout=TIMEOUT)
-    viewer, url = start_viewer([mission.shoreside.moos_file, f"--replay={alog}"], mission.folder)
-    try:
+    with viewer(mission, f"--replay={alog}") as url:
         async def reviewer():
             await browser.goto(url)
             await until(browser, "!document.getElementById('replay-bar').hidden", what="the replay bar")
@@ -150,5 +141,3 @@ def test_finished_run_replays_with_the_time_slider(live, browser):
             assert shown.startswith(f"{end:.1f} /"), shown
             await browser.screenshot(ARTIFACTS / "viewer_replay.png")
         browser.run(reviewer())
-    finally:
-        stop(viewer)
