@@ -34,6 +34,7 @@ from shapely.geometry.base import BaseGeometry
 from .features import lonlat_to_plane, to_lonlat, to_plane
 
 TIE_BREAK = 0.01
+WINDOW_H = 1.0   # readings used for one re-anchoring: the last hour's (about one pass of the loop)
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,10 @@ class SensorReadings:
         """The median observation time: when the re-anchored outline is valid."""
         return datetime.fromtimestamp(float(np.median(self.utc)), tz=timezone.utc)
 
-    def after(self, when: datetime) -> "SensorReadings":
-        keep = self.utc > when.timestamp()
+    def recent(self, after: datetime, window_h: float) -> "SensorReadings":
+        """Readings newer than ``after`` and within ``window_h`` hours of the newest one."""
+        newest = self.utc.max(initial=-np.inf)
+        keep = (self.utc > after.timestamp()) & (self.utc >= newest - 3600.0 * window_h)
         return SensorReadings(*(a[keep] for a in (self.lon, self.lat, self.oil, self.range_m, self.utc)))
 
 
@@ -134,16 +137,17 @@ def reanchor(prior: BaseGeometry, obs: SensorReadings, max_shift: float | None =
     return to_lonlat(moved)
 
 
-def ingest(forecaster, geometries: list, times: list[datetime], environments, obs: SensorReadings):
+def ingest(forecaster, geometries: list, times: list[datetime], environments, obs: SensorReadings,
+           window_h: float = WINDOW_H, release_time: datetime | None = None):
     """The observation history with the re-anchored outline appended (when ``obs`` has readings newer
-    than the last polygon). The prior is the model's forecast for the horizon nearest the readings'
-    time, the outline the fleet was sent to."""
-    obs = obs.after(times[-1])
+    than the last polygon; the last ``window_h`` hours of them). The prior is the model's forecast for
+    the horizon nearest the readings' time, the outline the fleet was sent to."""
+    obs = obs.recent(times[-1], window_h)
     if len(obs) == 0 or len(geometries) < 2:
         return geometries, times, environments
     when = obs.time()
     lead_h = (when - times[-1]).total_seconds() / 3600
-    forecasts = forecaster.forecast(geometries, times, environments)
+    forecasts = forecaster.forecast(geometries, times, environments, release_time)
     prior = min(forecasts, key=lambda f: abs(f.horizon_h - lead_h)).geometry
     environments = None if environments is None else [*environments, environments[-1]]
     return [*geometries, reanchor(prior, obs)], [*times, when], environments

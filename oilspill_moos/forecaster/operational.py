@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from . import features as F
+from .assimilate import ingest, read_feedback
 from .boundary import outline, rebuild_boundary
 from .evaluate import make_targets_consistent
 from .models import KINDS
@@ -162,6 +163,9 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     parser.add_argument("--wind", type=_pair, help="u,v m/s when the files carry no forcing")
     parser.add_argument("--current", type=_pair, help="u,v m/s when the files carry no forcing")
     parser.add_argument("--sea-temp", type=float, help="sea temperature in °C when the files carry none")
+    parser.add_argument("--feedback", type=Path, help="observations file of uFldOilFusion: re-anchor the last "
+                        "polygon on the fleet's latest readings before each forecast (docs/feedback.md); "
+                        "without it, no feedback")
     return parser
 
 
@@ -213,6 +217,9 @@ async def run(args) -> int:
                 geometries, times = read_observation_dir(args.observations)
                 environments = None if environment is None else [environment] * len(times)
                 release = None
+            if args.feedback is not None and times:
+                geometries, times, environments = ingest(forecaster, geometries, times, environments,
+                                                         read_feedback(args.feedback), release_time=release)
             if not times:
                 if args.once:
                     raise ValueError(f"{args.observations}: no polygon files to forecast from")

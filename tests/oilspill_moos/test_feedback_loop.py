@@ -1,8 +1,8 @@
 """Closed loop end to end: missions/oilspill with FEEDBACK, 3 vehicles against a truth spill.
 
-The forecaster forecasts a held-out scenario 3 h ahead from its first 17 hourly polygons; the
-forecast goes to pPathAssign; uFldOilSensor holds the scenario's truth an hour after that
-forecast's valid time (the fleet is late, as fleets are); the vehicles' pOilSampler observations
+The forecaster forecasts a held-out scenario 3 h ahead from its first 17 hourly polygons (hours
+1-17, so valid at hour 20); the forecast goes to pPathAssign; uFldOilSensor holds the scenario's
+truth at hour 21, an hour after that forecast's valid time (the fleet is late, as fleets are); the vehicles' pOilSampler observations
 cross the bridges to uFldOilFusion, which scores the forecast and writes them for the
 forecaster; the forecaster re-anchors on them, and the corrected outline must fit the truth
 better than the forecast the fleet was sent around. Fixed scenario and sensor seed.
@@ -54,7 +54,7 @@ def test_observations_reach_the_shore_and_correct_the_forecast(tmp_path, forecas
     world = ScenarioMap(ORIGIN, MAP_SCALE)
     feedback = tmp_path / "feedback.jsonl"
     mission = OilspillMission(tmp_path / "run", vehicles=3, warp=WARP, standoff=10.0, node_timeout=30.0, extra={
-        "FEEDBACK": "true", "OIL_SCENARIO": SCENARIO, "OIL_START_HOUR": "20", "OIL_MAP_SCALE": f"{MAP_SCALE:g}",
+        "FEEDBACK": "true", "OIL_SCENARIO": SCENARIO, "OIL_START_HOUR": "21", "OIL_MAP_SCALE": f"{MAP_SCALE:g}",
         "SENSOR_RANGE": "15", "FALSE_POS": "0.02", "FALSE_NEG": "0.05", "SAMPLE_INTERVAL": "3",
         "FEEDBACK_FILE": str(feedback)})
     skills, warnings = [], []
@@ -102,9 +102,10 @@ def test_observations_reach_the_shore_and_correct_the_forecast(tmp_path, forecas
     assert float(fields["agreement"]) < 1.0 and int(fields["flips"]) >= 2
 
     # the forecaster consumes them: re-anchored outline appended to its history
-    geometries, times, _ = ingest(forecaster, *history, obs)
+    geometries, times, _ = ingest(forecaster, *history, obs, release_time=scenario.release_time)
     assert len(geometries) == 18 and times[-1] > times[-2]
     truth = scenario.geometries[20]
+    assert scenario.times_h[20] == 21
     before, after = iou(forecast, truth), iou(geometries[-1], truth)
     print(f"IoU with the truth: forecast {before:.3f}, corrected {after:.3f}; {len(obs)} observations; {skills[-1]}")
     assert after > before + 0.05
