@@ -1,0 +1,61 @@
+"""pMarineViewer as a MOOS app against a real moosdb, with a WebSocket client in the page's place:
+mail reaches the page, unreadable mail becomes a log line naming its source, a button press is
+poked with the community's warped time, and a page sending nonsense is ignored."""
+import asyncio
+import json
+
+import websockets
+
+from helpers import async_wait_until
+from moosdb_py.client import MOOSClient
+from moosdb_py.message import moos_time
+from oilspill_moos.viewer.app import MarineViewer
+
+WARP = 20.0
+
+
+async def next_updates(page, predicate, timeout=10.0):
+    """Read batches until one of their updates satisfies `predicate`; return it."""
+    async with asyncio.timeout(timeout):
+        while True:
+            message = json.loads(await page.recv())
+            for update in message.get("updates", []):
+                if predicate(update):
+                    return update
+
+
+def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server):
+    async def scenario():
+        app = MarineViewer(None, "pMarineViewer", port=moosdb_server.port, time_warp=WARP)
+        app.http_port_option = 0
+        poked = []
+        watcher = MOOSClient("uOperatorWatch", port=moosdb_server.port, time_warp=WARP,
+                             on_mail=lambda mail: poked.extend(m for m in mail if m.key == "DEPLOY_ALL"))
+        watcher.register("DEPLOY_ALL")
+        tasks = [asyncio.create_task(app.run_async()), asyncio.create_task(watcher.run())]
+        try:
+            await watcher.wait_connected(10)
+            await async_wait_until(lambda: getattr(app, "server", None) is not None and app.client.connected, 10)
+            async with websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws") as page:
+                snapshot = json.loads(await page.recv())
+                assert snapshot["buttons"] == ["DEPLOY", "RETURN_ALL", "RE-PUSH BOUNDARY"]
+                watcher.notify("NODE_REPORT", "NAME=abe,X=5,Y=-7,HDG=90,SPD=1.5,MODE=MODE@ACTIVE:OIL-PATH")
+                vehicle = await next_updates(page, lambda u: u["t"] == "vehicle")
+                assert (vehicle["name"], vehicle["x"], vehicle["phase"]) == ("abe", 5.0, "OIL-PATH")
+                watcher.notify("VIEW_POLYGON", "pts={0,0:10,0:x=1},label=broken")
+                note = await next_updates(page, lambda u: u["t"] == "note")
+                assert note["level"] == "error" and "VIEW_POLYGON from uOperatorWatch@" in note["text"]
+                await page.send("not json")
+                await page.send(json.dumps({"cmd": "button", "index": 99}))
+                await page.send(json.dumps({"cmd": "button", "index": 0}))
+                note = await next_updates(page, lambda u: u["t"] == "note")
+                assert note["text"].startswith("DEPLOY: DEPLOY_ALL=true")
+                await async_wait_until(lambda: poked, 10)
+                assert [m.string for m in poked] == ["true"]
+                assert abs(poked[0].time - moos_time(WARP)) < 5 * WARP   # warped MOOS time, not the wall clock
+        finally:
+            app.stop()
+            watcher.close()
+            await asyncio.wait_for(asyncio.gather(*tasks, return_exceptions=True), 10)
+
+    asyncio.run(scenario())
