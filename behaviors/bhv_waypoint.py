@@ -39,6 +39,8 @@ class BHV_Waypoint(IvPBehavior):
         self.dist_prev_var = self.dist_next_var = ""
         self.wptflag_on_start = self.wptflags_posted = self.reset_on_idle = False
         self.point_start = False
+        self.odo_leg = 0.0
+        self.odo_last: tuple[float, float] | None = None   # None: pick up from here (fresh run)
         self.flags.update(cycleflag=[], wptflag=[])
 
     def is_flag_kind(self, key: str) -> bool:
@@ -309,6 +311,7 @@ class BHV_Waypoint(IvPBehavior):
 
     def on_run_to_idle(self) -> None:
         self.cpa = None
+        self.odo_last = None
         for var in (self.dist_prev_var, self.dist_next_var):
             if var:
                 self.post(var, -1.0)
@@ -338,7 +341,13 @@ class BHV_Waypoint(IvPBehavior):
         if self.lead_start is None:
             self.lead_start = (osx, osy)
         target_before = tuple(self.points[self.ix])
+        if self.odo_last is not None:
+            self.odo_leg += float(distance(*self.odo_last, osx, osy))
+        self.odo_last = (osx, osy)
         result = self.advance(osx, osy)
+        if result != "in-transit":
+            self.odo_leg = 0.0       # a new leg starts at the waypoint just reached
+        self.post_report("WPT_ODO", round(self.odo_leg, 2))
         if result in ("cycled", "completed"):
             self.post_report(self.status_var, f"behavior-name={self.name},{result}", key="end", repeatable=True)
             self.post_flags("cycleflag")

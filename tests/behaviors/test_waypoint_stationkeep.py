@@ -242,3 +242,14 @@ def test_distance_posts_and_their_idle_value(domain):
     w.posts = []
     w.on_run_to_idle()
     assert {p.var: p.value for p in w.posts if p.var.startswith("TO_")} == {"TO_NEXT": -1, "TO_PREV": -1}
+
+
+def test_leg_odometer(domain):
+    w, info = waypoint(domain, points="0,50:0,100", capture_radius=3)
+    odo = []
+    for y in (0, 10, 25, 48, 60):
+        at(info, 0, y)
+        w.posts = []
+        w.on_run_state()
+        odo.append(next(p.value for p in w.posts if p.var == "WPT_ODO"))
+    assert odo == [0, 10, 25, 0, 12]
