@@ -136,13 +136,26 @@ class Browser:
             raise BrowserError(f"{expression[:80]}: {result['exceptionDetails'].get('text')}")
         return result["result"].get("value")
 
+    async def _middle(self, selector: str) -> tuple[float, float]:
+        return tuple(await self.evaluate(
+            f"(() => {{ const r = document.querySelector({json.dumps(selector)}).getBoundingClientRect();"
+            f" return [r.x + r.width / 2, r.y + r.height / 2]; }})()"))
+
     async def click(self, selector: str) -> None:
         """Press and release the mouse at the middle of the element, as a person clicks."""
-        box = await self.evaluate(f"(() => {{ const r = document.querySelector({json.dumps(selector)})"
-                                  f".getBoundingClientRect(); return [r.x + r.width / 2, r.y + r.height / 2]; }})()")
+        x, y = await self._middle(selector)
         for kind in ("mouseMoved", "mousePressed", "mouseReleased"):
-            await self.send("Input.dispatchMouseEvent", session=True, type=kind, x=box[0], y=box[1],
-                            button="left", clickCount=1)
+            await self.send("Input.dispatchMouseEvent", session=True, type=kind, x=x, y=y, button="left", clickCount=1)
+
+    async def hover(self, selector: str) -> None:
+        x, y = await self._middle(selector)
+        await self.send("Input.dispatchMouseEvent", session=True, type="mouseMoved", x=x, y=y)
+
+    async def wheel(self, selector: str, delta_y: float) -> None:
+        """Turn the mouse wheel over the middle of the element (negative: away from you, zoom in)."""
+        x, y = await self._middle(selector)
+        await self.send("Input.dispatchMouseEvent", session=True, type="mouseWheel", x=x, y=y, deltaX=0,
+                        deltaY=delta_y)
 
     async def screenshot(self, path: Path) -> Path:
         shot = await self.send("Page.captureScreenshot", session=True, format="png")

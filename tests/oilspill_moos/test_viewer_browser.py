@@ -112,10 +112,21 @@ def test_operator_sees_the_fleet_deploys_it_and_watches_it_move(live, browser):
         await until(browser, f"{PHASES}.some(p => p === 'STARTING-POSITION' || p === 'OIL-PATH')",
                     what="vehicles on their way")
         await until(browser, "viewerStats.frames > 5", what="frames drawn")
+        await browser.hover("#map")
+        readout = await browser.evaluate("document.getElementById('cursor-ll').textContent")
+        assert readout.startswith("lat 28.7") and ", lon -88.3" in readout, readout   # near the mission origin
+        scale = await browser.evaluate("viewerView.scale")
+        await browser.wheel("#map", -240)
+        await until(browser, f"viewerView.scale > {scale} * 1.2", what="zoomed in by the wheel")
+        await browser.click("#fit")
         await browser.screenshot(ARTIFACTS / "viewer_live.png")
+        await until(browser, "(m => m && Number(m[1]) > 11)(/boundary_age=([0-9.]+)/.exec(viewerState.status))",
+                    what="the boundary older than pPathAssign's min_replan_interval (10 s), so a re-push is no flood")
         await browser.click("#buttons button[data-label='RE-PUSH BOUNDARY']")
-        await until(browser, "document.getElementById('log').textContent.includes('accepted it as boundary 2')",
+        await until(browser, "document.getElementById('log').textContent.includes('RE-PUSH')",
                     what="pPathAssign's answer to RE-PUSH BOUNDARY in the log")
+        log = await browser.evaluate("document.getElementById('log').textContent")
+        assert "accepted it as boundary 2" in log, log
         await browser.click("#buttons button[data-label='RETURN_ALL']")
         await until(browser, f"{PHASES}.every(p => p === 'RETURNING')", what="the fleet returning")
         assert not [line for line in browser.console if line.startswith("exception")], browser.console

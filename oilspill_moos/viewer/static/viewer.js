@@ -13,6 +13,7 @@ const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels 
 const stats = { messages: 0, updates: 0, frames: 0, frameMs: [], batchMs: [], connectedAt: 0 };
 window.viewerStats = stats;
 window.viewerState = state;
+window.viewerView = view;
 
 const canvas = document.getElementById("map");
 const ctx = canvas.getContext("2d");
