@@ -471,7 +471,8 @@ def plot_figures(ev: Evaluation, img_dir, scenario_indices) -> dict[str, str]:
         top.set_aspect("equal", adjustable="datalim")
         bottom.set_title(f"area, {ev.horizons_h[-1]} h ahead", fontsize=9)
         bottom.set_xlabel("hours since release")
-        bottom.set_ylabel("area (km²)")
+        bottom.set_ylabel("area (km², log scale)")
+        bottom.set_yscale("log")
         for ax in (top, bottom):
             ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7)
