@@ -445,9 +445,19 @@ def main(argv: list[str] | None = None) -> int:
                         help="forecaster weights folder (default: the ones shipped with the forecaster)")
     parser.add_argument("--viewer", type=int, nargs="?", const=8080, default=None, metavar="PORT",
                         help="watch it live: pMarineViewer on http://127.0.0.1:PORT/ (default 8080)")
+    parser.add_argument("--feedback", action="store_true",
+                        help="the closed loop instead: truth spill, fleet sensing, corrected forecast (docs/feedback.md)")
     args = parser.parse_args(argv)
     if args.warp <= 0 or args.vehicles < 1:
         parser.error("--warp must be > 0 and --vehicles >= 1")
+    if args.feedback:
+        from oilspill_moos import feedback_demo
+
+        try:
+            return feedback_demo.main(args.out, args.vehicles, args.warp, args.loop_time, args.timeout)
+        except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
+            print(f"demo: {exc}", file=sys.stderr)
+            return 1
     started = time.monotonic()
     try:
         weights = weights_dir(args.weights) if args.source != "shipped" else None

@@ -121,6 +121,7 @@ ProcessConfig = uFldOilSensor
     interface = """\
 SUBSCRIPTIONS:
   OIL_SENSOR_REQUEST       "vname=abe,id=17,x=..,y=.." (pOilSampler, bridged from each vehicle)
+  UFLDOILSENSOR_CMD        "hour=H": jump the truth's clock to scenario hour H
 
 PUBLICATIONS:
   OIL_SENSOR_REPORT_<V>    "vname=abe,id=17,utc=..,x=..,y=..,oil=1,range=15[,thickness=thick]"
@@ -169,6 +170,8 @@ PUBLICATIONS:
 
     def on_new_mail(self, mail) -> None:
         for msg in mail:
+            if msg.key == self.command_key:
+                self._command(str(msg.value))
             if msg.key != "OIL_SENSOR_REQUEST":
                 continue
             try:
@@ -182,6 +185,17 @@ PUBLICATIONS:
             report = Observation(vname, ident, self.truth.utc(hour), x, y, oil, self.sensor.range_m, thickness)
             self.notify(f"OIL_SENSOR_REPORT_{vname.upper()}", format_observation(report))
             self.answered += 1
+
+    def _command(self, text: str) -> None:
+        """`hour=H`: jump the truth's clock to scenario hour H (a demo's next forecast cycle)."""
+        try:
+            hour = float(parse_pairs(text)["hour"])
+            if not math.isfinite(hour) or hour < 0:
+                raise ValueError
+        except (KeyError, ValueError):
+            self.notify("OIL_SENSOR_WARNING", f"{self.command_key} {text!r}: expected hour=H (H >= 0)")
+            return
+        self.start_hour, self.clock_start = hour, self.moos_time()
 
     def iterate(self) -> None:
         hour = self.hour()
