@@ -79,7 +79,7 @@ def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mo
 class MarineViewer(MOOSApp):
     """pMarineViewer: a web operations map of the shoreside community. Vehicles (NODE_REPORT) with
     heading and trails, the spill boundary in force, each vehicle's start point and containment
-    loop, VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT markers, the phase of every vehicle and the
+    loop, the vessels' oil observations, VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT markers, the phase of every vehicle and the
     pPathAssign status line, served on http://127.0.0.1:<http_port>/ and pushed over a WebSocket.
     Buttons poke the MOOSDB (stamped with the community's warped time), RETURN_ALL recalls the
     fleet and RE-PUSH BOUNDARY sends the boundary in force to pPathAssign again.
@@ -119,7 +119,9 @@ SUBSCRIPTIONS:
   STARTING_POSITION_UPDATES_<V>  each vehicle's assigned start point
   OIL_PATH_UPDATES_<V>           each vehicle's containment loop
   OILSPILL_STATUS                pPathAssign's status line
-  OILSPILL_WARNING, OILSPILL_DROPPED, OILSPILL_REJOINED   shown in the page's log
+  OIL_OBSERVATION                the vessels' oil samples (pOilSampler, bridged): filled = oil
+  OIL_OBSERVED_EDGE, OIL_FUSION_SKILL   uFldOilFusion's observed edge points and skill line
+  OILSPILL_WARNING, OILSPILL_DROPPED, OILSPILL_REJOINED, OIL_FUSION_WARNING   shown in the page's log
 
 PUBLICATIONS:
   the variables of the configured buttons, e.g. DEPLOY_ALL, MOOS_MANUAL_OVERRIDE_ALL, RETURN_ALL

@@ -14,13 +14,15 @@ from dataclasses import dataclass, field
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
 from oilspill_moos.app_config import parse_float, parse_pairs
+from oilspill_moos.oil_fusion import parse_observation
 
 VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
 # Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).
-SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_STATUS", "OILSPILL_WARNING",
-                 "OILSPILL_DROPPED", "OILSPILL_REJOINED")
+NOTE_KEYS = {"OILSPILL_WARNING": "warning", "OILSPILL_DROPPED": "dropped", "OILSPILL_REJOINED": "rejoined",
+             "OIL_FUSION_WARNING": "warning"}
+SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_STATUS", *NOTE_KEYS,
+                 "OIL_OBSERVATION", "OIL_OBSERVED_EDGE", "OIL_FUSION_SKILL")
 WILDCARDS = ("OILSPILL_PHASE*", "STARTING_POSITION_UPDATES_*", "OIL_PATH_UPDATES_*")
-NOTE_KEYS = {"OILSPILL_WARNING": "warning", "OILSPILL_DROPPED": "dropped", "OILSPILL_REJOINED": "rejoined"}
 
 
 class ViewError(ValueError):
@@ -218,6 +220,9 @@ class Scene:
     commanded: dict[str, str] = field(default_factory=dict)   # OILSPILL_PHASE_<V>: what the shore asked
     status: str = ""
     notes: deque = field(default_factory=lambda: deque(maxlen=50))
+    observations: deque = field(default_factory=lambda: deque(maxlen=1000))   # the vessels' oil samples
+    observed_edge: list[list[float]] = field(default_factory=list)           # uFldOilFusion's flip points
+    skill: str = ""
 
     def apply(self, key: str, value, time: float, community: str = "") -> list[dict]:
         """One piece of mail -> the page updates it causes; raises ViewError on a string it cannot read."""
@@ -257,6 +262,23 @@ class Scene:
         if key == "OILSPILL_STATUS":
             self.status = text
             return [{"t": "status", "text": text}]
+        if key == "OIL_OBSERVATION":
+            try:
+                obs = parse_observation(text)
+            except ValueError as exc:
+                raise ViewError(f"OIL_OBSERVATION: {exc}") from None
+            update = {"t": "obs", "vname": obs.vname, "x": obs.x, "y": obs.y, "oil": obs.oil, "range": obs.range_m}
+            self.observations.append(update)
+            return [update]
+        if key == "OIL_OBSERVED_EDGE":
+            try:
+                self.observed_edge = parse_seglist(text).tolist() if text.strip() else []
+            except GeometryError as exc:
+                raise ViewError(f"OIL_OBSERVED_EDGE {text!r}: {exc}") from None
+            return [{"t": "edge", "points": self.observed_edge}]
+        if key == "OIL_FUSION_SKILL":
+            self.skill = text
+            return [{"t": "skill", "text": text}]
         if key in NOTE_KEYS:
             return [self.note(NOTE_KEYS[key], text, time)]
         return []
@@ -281,4 +303,5 @@ class Scene:
                 "markers": [m.as_update() for m in self.markers.values()],
                 "boundary": self.boundary, "starts": self.starts, "loops": self.loops, "phase": self.phase,
                 "commanded": self.commanded, "status": self.status, "notes": list(self.notes),
+                "observations": list(self.observations), "observed_edge": self.observed_edge, "skill": self.skill,
                 "trail_length": self.trail_length}

@@ -133,6 +133,20 @@ def test_scene_follows_the_mission_and_snapshots_it():
     assert scene.starts == {"abe": [-10.0, 5.0]}   # a bad update leaves the picture alone
 
 
+def test_scene_keeps_the_vessels_oil_observations_and_the_fusion_edge():
+    scene = Scene()
+    [obs] = scene.apply("OIL_OBSERVATION", "vname=abe,id=17,utc=5.5,x=12,y=-3.5,oil=1,range=15", 20.0)
+    assert obs == {"t": "obs", "vname": "abe", "x": 12.0, "y": -3.5, "oil": True, "range": 15.0}
+    scene.apply("OIL_OBSERVATION", "vname=ben,id=2,utc=6,x=40,y=0,oil=0,range=15", 21.0)
+    with pytest.raises(ViewError, match="OIL_OBSERVATION: .*lacks oil"):
+        scene.apply("OIL_OBSERVATION", "vname=ben,id=3,utc=6,x=40,y=0", 22.0)
+    scene.apply("OIL_OBSERVED_EDGE", "26.0,-1.8:30.5,4.0", 23.0)
+    scene.apply("OIL_FUSION_SKILL", "cycle=oilspill_1,observations=2,agreement=0.5", 23.0)
+    snap = scene.snapshot()
+    assert [o["oil"] for o in snap["observations"]] == [True, False]
+    assert snap["observed_edge"] == [[26.0, -1.8], [30.5, 4.0]] and snap["skill"].startswith("cycle=oilspill_1")
+
+
 def test_settings_default_buttons_and_boundary_port_from_path_assign(tmp_path):
     moos = tmp_path / "shore.moos"
     moos.write_text("ServerPort = 9000\nCommunity = shoreside\nLatOrigin = 28.7\nLongOrigin = -88.4\n"

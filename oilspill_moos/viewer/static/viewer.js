@@ -8,7 +8,9 @@ const PALETTE = ["#ffd23f", "#ff6b6b", "#4ecdc4", "#c77dff", "#ff9f1c", "#9ef01a
 const state = {
   setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, starts: {}, loops: {},
   phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
+  observations: [], observedEdge: [], skill: "",
 };
+const MAX_OBSERVATIONS = 1000;
 const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels per metre
 const stats = { messages: 0, updates: 0, frames: 0, frameMs: [], batchMs: [], connectedAt: 0 };
 window.viewerStats = stats;
@@ -57,7 +59,8 @@ function loadSnapshot(msg) {
   for (const v of msg.vehicles) state.vehicles.set(v.name.toLowerCase(), { ...v, trail: v.trail });
   for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
   Object.assign(state, { boundary: msg.boundary, starts: msg.starts, loops: msg.loops, phase: msg.phase,
-    commanded: msg.commanded, status: msg.status, time: msg.time });
+    commanded: msg.commanded, status: msg.status, time: msg.time, observations: msg.observations,
+    observedEdge: msg.observed_edge, skill: msg.skill });
   if (first) { buildControls(); setLink(true); }
   document.getElementById("log").replaceChildren();
   for (const note of msg.notes) addNote(note);
@@ -99,6 +102,12 @@ function apply(u) {
     case "start": state.starts[u.name] = u.point; break;
     case "loop": state.loops[u.name] = u.points; break;
     case "status": state.status = u.text; break;
+    case "obs":
+      state.observations.push(u);
+      if (state.observations.length > MAX_OBSERVATIONS) state.observations.shift();
+      break;
+    case "edge": state.observedEdge = u.points; break;
+    case "skill": state.skill = u.text; break;
     case "note": addNote(u); break;
   }
 }
@@ -137,6 +146,9 @@ function refreshPanel() {
   phase.textContent = state.phase || "—";
   phase.className = "phase-tag ph-" + (state.phase || "none");
   document.getElementById("status").textContent = state.status || "no status yet";
+  const skill = document.getElementById("skill");
+  skill.hidden = !state.skill;
+  skill.textContent = state.skill ? "fusion: " + state.skill : "";
   const body = document.querySelector("#vehicles tbody");
   const rows = [];
   [...state.vehicles.values()].forEach((v, i) => {
@@ -289,6 +301,22 @@ function drawMarkers() {
   }
 }
 
+// The vessels' oil samples (filled: oil within range; hollow: clear water) and the edge
+// uFldOilFusion places half-way between samples whose reading flips.
+function drawObservations() {
+  for (const o of state.observations) {
+    const [sx, sy] = toScreen(o.x, o.y);
+    ctx.beginPath(); ctx.arc(sx, sy, 3, 0, 2 * Math.PI);
+    if (o.oil) { ctx.fillStyle = "#d2691e"; ctx.fill(); }
+    else { ctx.strokeStyle = "#7fdbff"; ctx.lineWidth = 1; ctx.stroke(); }
+  }
+  ctx.fillStyle = "#ffffff";
+  for (const [x, y] of state.observedEdge) {
+    const [sx, sy] = toScreen(x, y);
+    ctx.fillRect(sx - 2, sy - 2, 4, 4);
+  }
+}
+
 function drawPlans(colors) {
   for (const [name, points] of Object.entries(state.loops)) {
     if (points.length < 2) continue;
@@ -347,6 +375,7 @@ function draw() {
   const colors = new Map();
   [...state.vehicles.values()].forEach((v, i) => colors.set(v.name.toLowerCase(), vehicleColor(v, i)));
   if (document.getElementById("show-markers").checked) drawMarkers();
+  drawObservations();
   drawPlans(colors);
   drawVehicles(colors);
   drawScaleBar();
