@@ -18,7 +18,7 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_float, config_str, parse_pairs, read_params
+from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
 
@@ -133,7 +133,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         if self.mission is None or self.mission.lat_origin is None or self.mission.long_origin is None:
-            raise ValueError(f"{self.name}: needs a mission file with LatOrigin and LongOrigin")
+            raise ValueError("needs a mission file with LatOrigin and LongOrigin")
         read_params(self.config, self._read)
         self.answered = self.refused = 0
         self.clock_start: float | None = None
@@ -148,7 +148,7 @@ PUBLICATIONS:
         wanted = config_str(cfg, "scenario", "steady_growth-2111")
         scenario = next((s for s in load_dataset() if s.scenario_id == wanted), None)
         if scenario is None:
-            raise ValueError(f"scenario = {wanted!r}: no such scenario_id in the committed dataset")
+            raise ConfigValueError("scenario", f"{wanted!r} is no scenario_id of the committed dataset")
         self.truth = TruthSpill.from_scenario(scenario, world)
         self.start_hour = config_float(cfg, "start_hour", 16.0, lo=0)
         self.time_scale = config_float(cfg, "time_scale", 1.0, lo=0)

@@ -102,3 +102,28 @@ def test_scenario_map_round_trip():
     assert world.real_metres(15) == pytest.approx(750)
     with pytest.raises(ValueError, match="map_scale"):
         ScenarioMap(world.grid, 0.0)
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_coord = st.floats(-1e5, 1e5, allow_nan=False).map(lambda v: round(v, 2))
+
+
+@settings(max_examples=60, deadline=None)
+@given(vname=st.from_regex(r"[a-z][a-z0-9_]{0,8}", fullmatch=True), ident=st.integers(0, 10**6),
+       utc=st.floats(0, 2e9, allow_nan=False).map(lambda v: round(v, 2)), x=_coord, y=_coord, oil=st.booleans(),
+       range_m=st.floats(0, 1e4, allow_nan=False).map(lambda v: round(v, 2)),
+       thickness=st.sampled_from(["", "sheen", "thick"]))
+def test_observation_format_parse_round_trip(vname, ident, utc, x, y, oil, range_m, thickness):
+    obs = Observation(vname, ident, utc, x, y, oil, range_m, thickness)
+    assert parse_observation(format_observation(obs)) == obs
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.text(max_size=80))
+def test_any_text_parses_or_is_rejected_with_a_reason(text):
+    try:
+        parse_observation(text)
+    except ObservationRejected as exc:
+        assert str(exc)
