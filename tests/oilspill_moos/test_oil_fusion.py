@@ -122,8 +122,10 @@ def test_observation_format_parse_round_trip(vname, ident, utc, x, y, oil, range
 
 @settings(max_examples=80, deadline=None)
 @given(st.text(max_size=80))
-def test_any_text_parses_or_is_rejected_with_a_reason(text):
+def test_any_text_gives_a_sound_observation_or_a_reason(text):
     try:
-        parse_observation(text)
+        obs = parse_observation(text)
     except ObservationRejected as exc:
         assert str(exc)
+    else:
+        assert all(map(math.isfinite, (obs.x, obs.y, obs.utc))) and obs.range_m >= 0 and obs.vname == obs.vname.lower()
