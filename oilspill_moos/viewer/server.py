@@ -51,6 +51,11 @@ class MapServer:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}/"
 
+    def page_origins(self) -> set[str]:
+        """Browsers may open the WebSocket only from this server's own page: a page from anywhere
+        else (another tab) must not press the buttons. Clients without an Origin are not browsers."""
+        return {f"http://{name}:{self.port}" for name in (self.host, "127.0.0.1", "localhost")}
+
     async def start(self) -> None:
         self._server = await serve(self._session, self.host, self.port, process_request=self._static,
                                    max_size=MAX_COMMAND, compression=None)
@@ -63,6 +68,9 @@ class MapServer:
     def _static(self, connection: ServerConnection, request: Request) -> Response | None:
         path = request.path.split("?")[0]
         if path == "/ws":
+            origin = request.headers.get("Origin")
+            if origin is not None and origin not in self.page_origins():
+                return connection.respond(HTTPStatus.FORBIDDEN, f"pages from {origin} may not steer this mission\n")
             return None
         found = self._files.get(path)
         if found is None:

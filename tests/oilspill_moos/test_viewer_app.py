@@ -1,9 +1,11 @@
 """pMarineViewer as a MOOS app against a real moosdb, with a WebSocket client in the page's place:
 mail reaches the page, unreadable mail becomes a log line naming its source, a button press is
-poked with the community's warped time, and a page sending nonsense is ignored."""
+poked with the community's warped time, a page sending nonsense is ignored, and a page from
+another site cannot open the WebSocket."""
 import asyncio
 import json
 
+import pytest
 import websockets
 
 from helpers import async_wait_until
@@ -36,7 +38,10 @@ def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server):
         try:
             await watcher.wait_connected(10)
             await async_wait_until(lambda: getattr(app, "server", None) is not None and app.client.connected, 10)
-            async with websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws") as page:
+            with pytest.raises(websockets.InvalidStatus, match="403"):   # another site's page in the browser
+                await websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws", origin="http://elsewhere.example")
+            async with websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws",
+                                          origin=f"http://localhost:{app.server.port}") as page:
                 snapshot = json.loads(await page.recv())
                 assert snapshot["buttons"] == ["DEPLOY", "RETURN_ALL", "RE-PUSH BOUNDARY"]
                 watcher.notify("NODE_REPORT", "NAME=abe,X=5,Y=-7,HDG=90,SPD=1.5,MODE=MODE@ACTIVE:OIL-PATH")
