@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
+from .app import print_page
 from .mission import AntlerRun, Mission, parse_mission
 from .nsplug import parse_defines, preprocess
 from .source import MissionFileError, SourceLine
@@ -397,7 +398,7 @@ def main(argv: list[str] | None = None) -> int:
     rest, overrides = split_overrides(sys.argv[1:] if argv is None else list(argv))
     args = _parser().parse_intermixed_args(rest)
     if args.example or args.interface:
-        print(EXAMPLE if args.example else INTERFACE, end="")
+        print_page(EXAMPLE if args.example else INTERFACE)
         return 0
     if not args.mission:
         _parser().error("a mission file is required")

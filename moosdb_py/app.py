@@ -199,7 +199,8 @@ class MOOSApp:
                  "-e": lambda: cls.example_config, "--interface": lambda: cls.interface, "-i": lambda: cls.interface}
         for arg in argv:
             if arg in pages:
-                print(inspect.cleandoc(pages[arg]()) if arg not in ("--help", "-h") else pages[arg]())
+                text = pages[arg]()
+                print_page((text if arg in ("--help", "-h") else inspect.cleandoc(text)) + "\n")
                 return 0
         options, positional = {}, []
         for arg in argv:
@@ -227,6 +228,16 @@ class MOOSApp:
         except KeyboardInterrupt:
             pass
         return 0
+
+
+def print_page(text: str) -> None:
+    """Print a --help/--example/--interface page; a reader that stops early (`| head`) is no error."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # Python flushes stdout again at exit: point it at /dev/null so that flush cannot fail too.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _memory_kb() -> int:

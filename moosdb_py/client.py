@@ -212,8 +212,6 @@ class MOOSClient:
         if self._wake is not None:
             self._wake.set()
 
-    _post = post   # the name pShare (moosdb_py/share.py) calls; it can switch to post(msg, keep_source=True)
-
     def _apply_subscriptions(self) -> None:
         for key, interval in self.registrations.items():
             self._send_register(key, interval)

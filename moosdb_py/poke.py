@@ -3,6 +3,11 @@
 `VAR=value` posts a double when the value reads as a number, else a string; `VAR:=value` always
 posts a string. The prior value is what the DB answers to the registration, which it sends before
 the echo of our own post (a client's messages are handled in order), so no waiting on timers.
+
+Pokes are stamped on the DB's clock (our MOOS time plus the skew the DB's welcome reports), as
+the C++ client corrects its MOOS time by that skew: a poke stamped with another time warp than
+the community's (say the mission file on disk says 1, pAntler ran it with --MOOSTimeWarp=10)
+would be dropped as skewed by the helm and the PID.
 """
 from __future__ import annotations
 
@@ -11,8 +16,9 @@ import asyncio
 import sys
 from dataclasses import dataclass
 
+from .app import print_page
 from .client import MOOSClient
-from .message import MOOSMsg, moos_time
+from .message import MOOSMsg
 from .mission import read_mission
 from .source import MissionFileError
 from .xms import Scope, connect, format_table
@@ -75,7 +81,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--port", "--serverport", "--moos_port", dest="port", type=int,
                    help="MOOSDB port (default: mission or 9000)")
     p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
-                   help="the community's time warp, so pokes carry its MOOS time (default: mission or 1)")
+                   help="our time warp (default: mission or 1); pokes carry the DB's time whatever it is")
     p.add_argument("--cache", action="store_true", help="also poke the poke = lines of the mission's uPokeDB block")
     p.add_argument("--alias", default="uPokeDB", help="MOOS name of this client (default uPokeDB)")
     p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT,
@@ -114,10 +120,12 @@ async def poke_db(host: str, port: int, pokes: list[Poke], *, name: str = "uPoke
 
     def on_connect() -> None:
         nonlocal posted
+        db_time = client.moos_time() + client.db_skew
+        before.start = after.start = db_time
         for var in names:
             client.register(var)
         for poke in pokes:
-            client.notify(poke.var, poke.value)
+            client.notify(poke.var, poke.value, time=db_time)
         posted = True
 
     client = MOOSClient(name, host, port, on_mail=on_mail, on_connect=on_connect, time_warp=time_warp)
@@ -132,9 +140,9 @@ async def poke_db(host: str, port: int, pokes: list[Poke], *, name: str = "uPoke
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args = _parser().parse_intermixed_args(argv)
     if args.example or args.interface:
-        print(EXAMPLE if args.example else INTERFACE, end="")
+        print_page(EXAMPLE if args.example else INTERFACE)
         return 0
     words = list(args.args)
     try:
@@ -148,7 +156,6 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, MissionFileError) as exc:
         print(f"uPokeDB: {exc}", file=sys.stderr)
         return 1
-    start = moos_time(warp)
     try:
         before, after = asyncio.run(poke_db(host, port, pokes, name=args.alias, time_warp=warp,
                                             timeout=args.timeout))
@@ -160,7 +167,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"uPokeDB: {exc}", file=sys.stderr)
         return 1
     if not args.quiet:
-        before.start = after.start = start
         print("PRIOR to Poking the MOOSDB")
         print(format_table(before, {"source", "time"}))
         print("AFTER Poking the MOOSDB")

@@ -533,15 +533,9 @@ PUBLICATIONS:
             self.notify("PSHARE_INPUT_SUMMARY", self.table.input_summary())
 
     def post_message(self, msg: MOOSMsg) -> None:
-        """Post a received message as it was sent, like C++ `Post(msg, keep_source=true)`.
-
-        The client stamps its own name on everything it queues; the message is encoded only when
-        the write loop runs, so putting the original source back right away is what goes out.
-        """
-        source = msg.source
+        """Post a received message as it was sent, like C++ `Post(msg, keep_source=true)`."""
         self.client.published.add(msg.key)
-        self.client._post(msg)
-        msg.source = source
+        self.client.post(msg, keep_source=True)
 
     async def run_async(self) -> None:
         try:

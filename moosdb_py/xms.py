@@ -13,6 +13,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
+from .app import print_page
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg, moos_time
 from .mission import Mission, read_mission
@@ -283,9 +284,9 @@ async def _refresh_loop(args, opts: Options, scope: Scope, changed: asyncio.Even
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args = _parser().parse_intermixed_args(argv)
     if args.example or args.interface:
-        print(EXAMPLE if args.example else INTERFACE, end="")
+        print_page(EXAMPLE if args.example else INTERFACE)
         return 0
     try:
         opts = options_from(args)

@@ -9,6 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from moosdb_py.app import print_page
+
 from . import operational
 
 SUBCOMMANDS = ("simulate", "train", "evaluate", "forecast", "push")
@@ -120,11 +122,8 @@ def main(argv=None) -> int:
             from .evaluate import main as evaluate_main
             return evaluate_main(rest)
         return forecast_main(rest) if command == "forecast" else push_main(rest)
-    if "--example" in argv:
-        print(EXAMPLE, end="")
-        return 0
-    if "--interface" in argv:
-        print(INTERFACE, end="")
+    if "--example" in argv or "--interface" in argv:
+        print_page(EXAMPLE if "--example" in argv else INTERFACE)
         return 0
     parser = operational.build_parser(argparse.ArgumentParser(
         prog="python -m oilspill_moos.forecaster", description=DESCRIPTION,
