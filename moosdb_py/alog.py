@@ -4,6 +4,11 @@ Format (field-apps.md section 5): a `%%` header with the LOGSTART time, then one
 `<rel time> <VAR> <source[:aux][@community]> <value> ` with fixed-width, left-justified columns that
 grow when a field is longer, and one trailing blank. So a reader splits the first three
 blank-separated tokens and takes the rest of the line as the value.
+
+pLogger writes a string value as it is, so a value holding newlines (DB_VARSUMMARY, a multi-line
+report) spans several lines: a line that does not start a new entry (its first word is no number)
+continues the value of the entry above, as the file was written. (A value line that itself reads
+as `<number> <word> <word>` cannot be told from a new entry; the format has no escape for it.)
 """
 from __future__ import annotations
 
@@ -101,7 +106,7 @@ class Alog:
         return next((e for e in reversed(self.entries) if e.key == key), None)
 
 
-_LINE = re.compile(r"\s*(\S+)\s+(\S+)\s+(\S+)\s*(.*)")
+_LINE = re.compile(r"\s*(\S+)\s+(\S+)\s+(\S+)\s*(.*)", re.DOTALL)
 
 
 def _number(text: str) -> float | None:
@@ -112,8 +117,9 @@ def _number(text: str) -> float | None:
 
 
 def parse_alog_line(text: str, line: int = 0, path: Path | str = "<alog>", marked: bool = False) -> AlogEntry:
-    """One data line; the value is the rest of the line after the third field, minus its trailing blank."""
-    text = text.rstrip("\r\n")
+    """One entry (a line, or several for a multi-line value); the value is the rest after the third field,
+    minus the trailing blank."""
+    text = text[:-2] if text.endswith("\r\n") else text[:-1] if text.endswith("\n") else text
     match = _LINE.fullmatch(text)
     if match is None:
         raise AlogFormatError(path, line, f"expected TIME VAR SOURCE VALUE, got '{text}'")
@@ -127,17 +133,30 @@ def parse_alog_line(text: str, line: int = 0, path: Path | str = "<alog>", marke
     value: float | str = raw
     if marked and raw[:2] in ("D:", "S:"):
         value = float(raw[2:]) if raw.startswith("D:") else raw[2:]
-    elif not marked:
+    elif not marked and "\n" not in raw:
         number = _number(raw)
         value = raw if number is None else number
     return AlogEntry(rel_time, match.group(2), source, aux, community, value, line)
 
 
+def _starts_entry(text: str) -> bool:
+    words = text.split(maxsplit=3)
+    return len(words) >= 3 and _number(words[0]) is not None
+
+
 def iter_alog(path: Path | str) -> Iterator[AlogEntry | float]:
     """Stream an .alog: yields LOGSTART (a float) once it is seen, then every entry."""
     marked = False
+    entry: list[str] = []       # the lines of the entry being read (more than one: a multi-line value)
+    first = 0                   # its line number
     with open(path, encoding="latin-1", newline="") as stream:
         for number, text in enumerate(stream, 1):
+            if entry and not text.startswith("%%") and not _starts_entry(text):
+                entry.append(text)
+                continue
+            if entry:
+                yield parse_alog_line("".join(entry), first, path, marked)
+                entry = []
             if text.startswith("%%"):
                 words = text.split()
                 if len(words) >= 3 and words[1] == "LOGSTART":
@@ -147,7 +166,9 @@ def iter_alog(path: Path | str) -> Iterator[AlogEntry | float]:
                         raise AlogFormatError(path, number, f"LOGSTART '{words[2]}' is not a number") from None
                 marked = marked or text.startswith(DATATYPE_MARKING)
             elif text.strip():
-                yield parse_alog_line(text, number, path, marked)
+                entry, first = [text], number
+        if entry:
+            yield parse_alog_line("".join(entry), first, path, marked)
 
 
 def read_alog(path: Path | str) -> Alog:

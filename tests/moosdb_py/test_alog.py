@@ -120,3 +120,18 @@ def test_round_trip_property(key, source, aux, value, offset):
         assert entry.value == pytest.approx(value, abs=1e-5)
     else:
         assert entry.value == value
+
+
+def test_multi_line_values_read_back_whole(tmp_path):
+    """pLogger writes DB_VARSUMMARY's newlines as they are: the value spans lines, the file still reads."""
+    summary = ("DB_TIME              12:00:00.100         MOOSDB_#1             1.0 Hz D  1708009923.1\n"
+               "DEPLOY               12:00:01.000         uPokeDB               0.0 Hz S  true\n")
+    path = tmp_path / "multi.alog"
+    writer = AlogWriter(path, START)
+    for key, value in [("DB_VARSUMMARY", summary), ("NOTE", "a\n\nb 12 c\nd"), ("NAV_X", 3.0), ("LINES", "1\n2")]:
+        writer.write(MOOSMsg.notification(key, value, time=START + 1, source="s"))
+    writer.close()
+    log = read_alog(path)
+    assert [(e.key, e.value) for e in log.entries] == [
+        ("DB_VARSUMMARY", summary), ("NOTE", "a\n\nb 12 c\nd"), ("NAV_X", 3.0), ("LINES", "1\n2")]
+    assert [e.line for e in log.entries] == [6, 9, 13, 14]
