@@ -192,13 +192,6 @@ class ScenarioMap:
             return np.column_stack([x, y]) * self.map_scale
         return shapely.transform(geometry, forward)
 
-    def to_world(self, geometry: BaseGeometry) -> BaseGeometry:
-        """A mission-metres geometry as EPSG:4326 in the scenario's world."""
-        def inverse(coords):
-            lon, lat = self.to_lonlat(coords[:, 0], coords[:, 1])
-            return np.column_stack([lon, lat])
-        return shapely.transform(geometry, inverse)
-
     def real_metres(self, metres: float) -> float:
         return metres / self.map_scale
 
