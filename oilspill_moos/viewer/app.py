@@ -62,9 +62,10 @@ def mission_grid(mission) -> LocalGrid | None:
     return LocalGrid(mission.lat_origin, mission.long_origin)
 
 
-def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str) -> dict:
-    """What the page needs besides the picture: buttons, and a linear lat/long readout about the origin
-    (derivatives from pyproj over +-1 km: metre-accurate within a few km, which is where a spill is)."""
+def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0) -> dict:
+    """What the page needs besides the picture: buttons, the time its mission clock counts from (`t0`),
+    and a linear lat/long readout about the origin (derivatives from pyproj over +-1 km: metre-accurate
+    within a few km, which is where a spill is)."""
     origin = None
     if grid is not None:
         lat0, lon0 = (float(v) for v in grid.to_latlon(0.0, 0.0))
@@ -72,7 +73,7 @@ def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mo
         lat_n, lon_n = (float(v) for v in grid.to_latlon(0.0, 1000.0))
         origin = {"lat": lat0, "lon": lon0, "dlat_dx": (lat_e - lat0) / 1000, "dlon_dx": (lon_e - lon0) / 1000,
                   "dlat_dy": (lat_n - lat0) / 1000, "dlon_dy": (lon_n - lon0) / 1000}
-    return {"mode": mode, "community": community, "origin": origin,
+    return {"mode": mode, "community": community, "origin": origin, "t0": t0,
             "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" else [])}
 
 
@@ -138,7 +139,8 @@ PUBLICATIONS:
             print(f"{self.name}: {warning}", file=sys.stderr)
         self.buttons: list[Button] = self.settings["buttons"]
         self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
-        self.setup = page_setup(self.scene.grid, self.buttons, self.mission.community if self.mission else "", "live")
+        self.setup = page_setup(self.scene.grid, self.buttons, self.mission.community if self.mission else "", "live",
+                                self.start_time)
 
     def on_connect(self) -> None:
         for key in SUBSCRIPTIONS:

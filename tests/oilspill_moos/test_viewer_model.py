@@ -218,5 +218,12 @@ async def drive_replay(replay):
             pass
         assert message["replay"]["t"] == 50.0 and not message["replay"]["playing"]
         assert message["vehicles"][0]["x"] == 50.0 and len(message["vehicles"][0]["trail"]) == 11
+        await page.send(json.dumps({"cmd": "speed", "speed": 40}))
+        await page.send(json.dumps({"cmd": "speed", "speed": -3}))     # refused: the clock only runs forward
+        await page.send(json.dumps({"cmd": "play"}))
+        while not (message := json.loads(await asyncio.wait_for(page.recv(), 5))).get("updates"):
+            pass
+        assert message["replay"]["speed"] == 40.0 and message["replay"]["playing"] and message["replay"]["t"] > 50.0
+        assert message["updates"][0]["x"] > 50.0
     stop.set()
     await asyncio.wait_for(task, 5)

@@ -52,7 +52,7 @@ function setLink(up) {
 
 function loadSnapshot(msg) {
   const first = state.setup === null || state.setup.mode !== msg.mode;
-  state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons };
+  state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons, t0: msg.t0 };
   state.vehicles.clear();
   state.markers.clear();
   state.trailLength = msg.trail_length;
@@ -135,13 +135,18 @@ function buildControls() {
     ? "community " + state.setup.community : "";
 }
 
+// By name, so a vehicle keeps its row and colour whatever order its reports arrive in.
+function sortedVehicles() {
+  return [...state.vehicles.values()].sort((a, b) => a.name.localeCompare(b.name));
+}
+
 function vehicleColor(v, index) {
   return cssColor(v.color) || PALETTE[index % PALETTE.length];
 }
 
 function refreshPanel() {
   const replaying = state.setup && state.setup.mode === "replay";
-  document.getElementById("clock").textContent = (replaying ? "log time " : "MOOS time ") + clockText(state.time);
+  document.getElementById("clock").textContent = (replaying ? "log time " : "mission time ") + clockText(state.time);
   const phase = document.getElementById("phase");
   phase.textContent = state.phase || "—";
   phase.className = "phase-tag ph-" + (state.phase || "none");
@@ -151,7 +156,7 @@ function refreshPanel() {
   skill.textContent = state.skill ? "fusion: " + state.skill : "";
   const body = document.querySelector("#vehicles tbody");
   const rows = [];
-  [...state.vehicles.values()].forEach((v, i) => {
+  sortedVehicles().forEach((v, i) => {
     const tr = document.createElement("tr");
     const age = Math.max(0, state.time - v.seen);
     tr.dataset.name = v.name.toLowerCase();
@@ -171,9 +176,12 @@ function refreshPanel() {
   body.replaceChildren(...rows);
 }
 
-// MOOS time is (warped) UTC seconds; a replayed log counts from its start.
+// Times are shown as mission time: seconds of (warped) MOOS time since the viewer started,
+// or since the start of the log in a replay, as pMarineViewer's clock counts.
 function clockText(t) {
-  return t > 1e8 ? new Date(t * 1000).toISOString().substring(11, 19) + " UTC" : t.toFixed(1) + " s";
+  const s = Math.max(0, t - ((state.setup && state.setup.t0) || 0));
+  const h = Math.floor(s / 3600), m = Math.floor(s / 60) % 60, sec = (s % 60).toFixed(1).padStart(4, "0");
+  return (h ? `${h}:${String(m).padStart(2, "0")}` : `${m}`) + `:${sec}`;
 }
 
 function addNote(note) {
@@ -373,7 +381,7 @@ function draw() {
   drawGrid();
   drawBoundary();
   const colors = new Map();
-  [...state.vehicles.values()].forEach((v, i) => colors.set(v.name.toLowerCase(), vehicleColor(v, i)));
+  sortedVehicles().forEach((v, i) => colors.set(v.name.toLowerCase(), vehicleColor(v, i)));
   if (document.getElementById("show-markers").checked) drawMarkers();
   drawObservations();
   drawPlans(colors);
