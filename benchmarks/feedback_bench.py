@@ -24,7 +24,6 @@ import sys
 import time
 
 import numpy as np
-import shapely
 
 from oilspill_moos.forecaster.assimilate import SensorReadings, reanchor
 from oilspill_moos.forecaster.dataset import load_dataset
