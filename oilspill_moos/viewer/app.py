@@ -22,6 +22,7 @@ from oilspill_moos.viewer.model import (
     Button,
     Scene,
     ViewError,
+    merge_button,
     parse_button,
 )
 from oilspill_moos.viewer.server import MapServer
@@ -39,13 +40,18 @@ def read_settings(config, mission) -> dict:
     assigned_port = path_assign.get("boundary_port") if path_assign is not None else None
     buttons = []
     for key in BUTTON_KEYS:
-        text = config.get(key)
-        if text:
+        entries = [e for e in getattr(config, "entries", []) if e.key.lower() == key]
+        lines = []
+        for entry in entries:
             try:
-                buttons.append(parse_button(text))
+                lines.append(parse_button(entry.value))
             except ViewError as exc:
-                entry = config.entry(key) if hasattr(config, "entry") else None
-                raise (entry.source.error(str(exc)) if entry is not None else ValueError(f"{key}: {exc}")) from None
+                raise entry.source.error(str(exc)) from None
+        if lines:
+            try:
+                buttons.append(merge_button(lines))
+            except ViewError as exc:
+                raise entries[0].source.error(str(exc)) from None
     return {"http_host": config_str(config, "http_host", "127.0.0.1"),
             "http_port": int(config_float(config, "http_port", 8080, lo=0, hi=65535)),
             "refresh_hz": config_float(config, "refresh_hz", 10.0, lo=0.5, hi=60.0),
@@ -105,8 +111,9 @@ ProcessConfig = pMarineViewer
   boundary_host = 127.0.0.1   // pPathAssign's boundary server, for RE-PUSH BOUNDARY
   boundary_port = 9100        // default: pPathAssign's boundary_port in this file, else 9100
 
-  // Buttons, as in MOOS-IvP's pMarineViewer: LABEL # VAR=value # VAR=value ...
-  // (numbers are poked as doubles, "quoted" values as strings). Default when none is given:
+  // Buttons, as in MOOS-IvP's pMarineViewer: LABEL # VAR=value # VAR=value ...; a repeated
+  // button_one line adds its pokes to button one (numbers are poked as doubles, "quoted" values
+  // as strings). Default when none is given:
   button_one = DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false
   // button_two ... button_ten likewise. RETURN_ALL (RETURN_ALL=true) and RE-PUSH BOUNDARY are always there.
 }

@@ -165,30 +165,45 @@ class Button:
     pokes: tuple[tuple[str, float | str], ...]
 
 
+def _poke_value(raw: str) -> float | str:
+    if len(raw) >= 2 and raw[0] == raw[-1] == '"':
+        return raw[1:-1]
+    try:
+        value = float(raw)
+    except ValueError:
+        return raw
+    return value if math.isfinite(value) else raw
+
+
 def parse_button(text: str) -> Button:
-    """Numbers are poked as doubles, anything else (or a quoted number) as a string, as pMarineViewer does."""
-    label, *assignments = (part.strip() for part in text.split("#"))
-    if not label or "=" in label:
-        raise ViewError(f"button {text!r}: expected LABEL # VAR=value # ...")
-    pokes = []
-    for item in assignments:
+    """One `button_<n>` line: `#`-separated items, the one without `=` the label (optional: a
+    repeated `button_one = MOOS_MANUAL_OVERRIDE_ALL=false` line adds pokes to button one), the
+    others `VAR=value` pokes. Numbers are poked as doubles, anything else (or a "quoted" number) as
+    a string, as pMarineViewer does."""
+    label, pokes = "", []
+    for item in (part.strip() for part in text.split("#")):
         key, sep, raw = item.partition("=")
         key, raw = key.strip(), raw.strip()
-        if not sep or not key or " " in key:
+        if not sep:
+            if label or not item:
+                raise ViewError(f"button {text!r}: expected LABEL # VAR=value # ...")
+            label = item
+        elif not key or " " in key:
             raise ViewError(f"button {text!r}: {item!r} is not VAR=value")
-        if len(raw) >= 2 and raw[0] == raw[-1] == '"':
-            value: float | str = raw[1:-1]
         else:
-            try:
-                value = float(raw)
-            except ValueError:
-                value = raw
-            if isinstance(value, float) and not math.isfinite(value):
-                value = raw
-        pokes.append((key, value))
-    if not pokes:
-        raise ViewError(f"button {text!r}: no VAR=value to poke")
+            pokes.append((key, _poke_value(raw)))
     return Button(label, tuple(pokes))
+
+
+def merge_button(lines: list[Button]) -> Button:
+    """The lines of one button joined: the first label (else the first poke's text), every poke in order."""
+    pokes = tuple(p for line in lines for p in line.pokes)
+    if not pokes:
+        raise ViewError(f"button {lines[0].label!r}: no VAR=value to poke")
+    key, value = pokes[0]
+    label = next((line.label for line in lines if line.label), f"{key}={value:g}" if isinstance(value, float)
+                 else f"{key}={value}")
+    return Button(label, pokes)
 
 
 @dataclass

@@ -13,7 +13,15 @@ from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.viewer.app import MarineViewer, Replay, page_setup, read_settings, serve_replay
-from oilspill_moos.viewer.model import Scene, ViewError, parse_button, parse_node_report, parse_view
+from oilspill_moos.viewer.model import (
+    Button,
+    Scene,
+    ViewError,
+    merge_button,
+    parse_button,
+    parse_node_report,
+    parse_view,
+)
 
 SPEC_REPORT = ("NAME=abe,X=12.51,Y=-40.2,SPD=1.98,HDG=181.3,DEP=0,LAT=43.82494,LON=-70.3302,TYPE=kayak,"
                "COLOR=yellow,MODE=MODE@ACTIVE:SURVEYING,ALLSTOP=clear,INDEX=417,YAW=-1.5934856,"
@@ -100,10 +108,17 @@ def test_buttons_configured_as_in_pmarineviewer():
     button = parse_button("DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false")
     assert button.label == "DEPLOY"
     assert button.pokes == (("DEPLOY_ALL", "true"), ("MOOS_MANUAL_OVERRIDE_ALL", "false"))
-    assert parse_button('SPEED # LOOP_SPEED=2.5 # LABEL="3"').pokes == (("LOOP_SPEED", 2.5), ("LABEL", "3"))
-    for bad in ("DEPLOY", "A=b # C=d", "GO # no value", "GO # TWO WORDS=1"):
+    assert parse_button('SLOWER # WPT_UPDATE=speed=1.5 # GAIN=2.5 # LABEL="3"').pokes == (
+        ("WPT_UPDATE", "speed=1.5"), ("GAIN", 2.5), ("LABEL", "3"))
+    # corpus missions split one button over lines, and may give no label at all
+    joined = merge_button([parse_button("DEPLOY  # DEPLOY_ALL=true "), parse_button("MOOS_MANUAL_OVERRIDE_ALL=false")])
+    assert joined == Button("DEPLOY", (("DEPLOY_ALL", "true"), ("MOOS_MANUAL_OVERRIDE_ALL", "false")))
+    assert merge_button([parse_button("RETURN_ALL=false # STATION_KEEP_ALL=false")]).label == "RETURN_ALL=false"
+    for bad in ("A # B # C=1", "GO # TWO WORDS=1", "GO # =1", "GO ## X=1"):
         with pytest.raises(ViewError, match="button"):
             parse_button(bad)
+    with pytest.raises(ViewError, match="no VAR=value"):
+        merge_button([parse_button("DEPLOY")])
 
 
 def test_scene_follows_the_mission_and_snapshots_it():
@@ -151,15 +166,17 @@ def test_settings_default_buttons_and_boundary_port_from_path_assign(tmp_path):
     moos = tmp_path / "shore.moos"
     moos.write_text("ServerPort = 9000\nCommunity = shoreside\nLatOrigin = 28.7\nLongOrigin = -88.4\n"
                     "ProcessConfig = pPathAssign\n{\n  boundary_port = 9321\n}\n"
-                    "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  button_one = GO # DEPLOY_ALL=true\n}\n")
+                    "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  button_one = GO # DEPLOY_ALL=true\n"
+                    "  button_two = RETURN # RETURN_ALL=true\n  button_one = MOOS_MANUAL_OVERRIDE_ALL=false\n}\n")
     mission = read_mission(moos)
     got = read_settings(mission.process_config("pMarineViewer"), mission)
     assert got["boundary_port"] == 9321 and got["http_port"] == 0 and got["http_host"] == "127.0.0.1"
-    assert [b.label for b in got["buttons"]] == ["GO", "RETURN_ALL"]
+    assert [b.label for b in got["buttons"]] == ["GO", "RETURN", "RETURN_ALL"]
+    assert got["buttons"][0].pokes == (("DEPLOY_ALL", "true"), ("MOOS_MANUAL_OVERRIDE_ALL", "false"))
     assert [b.label for b in read_settings({}, None)["buttons"]] == ["DEPLOY", "RETURN_ALL"]
-    moos.write_text(moos.read_text().replace("GO # DEPLOY_ALL=true", "GO # DEPLOY_ALL"))
+    moos.write_text(moos.read_text().replace("RETURN # RETURN_ALL=true", "RETURN # RETURN ALL=true"))
     mission = read_mission(moos)
-    with pytest.raises(MissionFileError, match=r"shore.moos:12: .*DEPLOY_ALL"):
+    with pytest.raises(MissionFileError, match=r"shore.moos:13: .*RETURN ALL=true"):
         read_settings(mission.process_config("pMarineViewer"), mission)
 
 
