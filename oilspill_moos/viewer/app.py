@@ -23,6 +23,7 @@ from oilspill_moos.viewer.model import (
     Scene,
     ViewError,
     merge_button,
+    parse_action,
     parse_button,
 )
 from oilspill_moos.viewer.server import MapServer
@@ -31,7 +32,8 @@ BUTTON_KEYS = ("button_one", "button_two", "button_three", "button_four", "butto
                "button_seven", "button_eight", "button_nine", "button_ten")
 DEFAULT_BUTTON = "DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false"
 RETURN_BUTTON = "RETURN_ALL # RETURN_ALL=true"
-KNOWN = {"http_host", "http_port", "refresh_hz", "trail_length", "boundary_host", "boundary_port", *BUTTON_KEYS}
+KNOWN = {"http_host", "http_port", "refresh_hz", "trail_length", "boundary_host", "boundary_port", "action",
+         *BUTTON_KEYS}
 
 
 def read_settings(config, mission) -> dict:
@@ -52,6 +54,12 @@ def read_settings(config, mission) -> dict:
                 buttons.append(merge_button(lines))
             except ViewError as exc:
                 raise entries[0].source.error(str(exc)) from None
+    actions = []
+    for entry in (e for e in getattr(config, "entries", []) if e.key.lower() == "action"):
+        try:
+            actions.append(parse_action(entry.value))
+        except ViewError as exc:
+            raise entry.source.error(str(exc)) from None
     return {"http_host": config_str(config, "http_host", "127.0.0.1"),
             "http_port": int(config_float(config, "http_port", 8080, lo=0, hi=65535)),
             "refresh_hz": config_float(config, "refresh_hz", 10.0, lo=0.5, hi=60.0),
@@ -59,7 +67,8 @@ def read_settings(config, mission) -> dict:
             "boundary_host": config_str(config, "boundary_host", "127.0.0.1"),
             "boundary_port": int(config_float(config, "boundary_port", float(assigned_port or BOUNDARY_PORT),
                                               lo=1, hi=65535)),
-            "buttons": (buttons or [parse_button(DEFAULT_BUTTON)]) + [parse_button(RETURN_BUTTON)]}
+            "buttons": (buttons or [parse_button(DEFAULT_BUTTON)]) + [parse_button(RETURN_BUTTON)],
+            "actions": actions}
 
 
 def mission_grid(mission) -> LocalGrid | None:
@@ -68,7 +77,8 @@ def mission_grid(mission) -> LocalGrid | None:
     return LocalGrid(mission.lat_origin, mission.long_origin)
 
 
-def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0) -> dict:
+def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0,
+               actions: list[Button] = ()) -> dict:
     """What the page needs besides the picture: buttons, the time its mission clock counts from (`t0`),
     and a linear lat/long readout about the origin (derivatives from pyproj over +-1 km: metre-accurate
     within a few km, which is where a spill is)."""
@@ -80,7 +90,8 @@ def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mo
         origin = {"lat": lat0, "lon": lon0, "dlat_dx": (lat_e - lat0) / 1000, "dlon_dx": (lon_e - lon0) / 1000,
                   "dlat_dy": (lat_n - lat0) / 1000, "dlon_dy": (lon_n - lon0) / 1000}
     return {"mode": mode, "community": community, "origin": origin, "t0": t0,
-            "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" else [])}
+            "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" else []),
+            "actions": [a.label for a in actions]}
 
 
 class MarineViewer(MOOSApp):
@@ -116,6 +127,10 @@ ProcessConfig = pMarineViewer
   // as strings). Default when none is given:
   button_one = DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false
   // button_two ... button_ten likewise. RETURN_ALL (RETURN_ALL=true) and RE-PUSH BOUNDARY are always there.
+
+  // The action menu, as in pMarineViewer (none by default):
+  // action = MENU_KEY=deploy # DEPLOY=true # RETURN=false
+  // action = RETURN=true
 }
 """
     interface = """\
@@ -132,7 +147,7 @@ SUBSCRIPTIONS:
   OILSPILL_WARNING, OILSPILL_DROPPED, OILSPILL_REJOINED, OIL_FUSION_WARNING   shown in the page's log
 
 PUBLICATIONS:
-  the variables of the configured buttons, e.g. DEPLOY_ALL, MOOS_MANUAL_OVERRIDE_ALL, RETURN_ALL
+  the variables of the configured buttons and actions, e.g. DEPLOY_ALL, MOOS_MANUAL_OVERRIDE_ALL, RETURN_ALL
   RETURN_ALL                     true, from the RETURN_ALL button
   (RE-PUSH BOUNDARY is a TCP line to pPathAssign, not a MOOS post)
 """
@@ -146,8 +161,9 @@ PUBLICATIONS:
             print(f"{self.name}: {warning}", file=sys.stderr)
         self.buttons: list[Button] = self.settings["buttons"]
         self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
+        self.actions: list[Button] = self.settings["actions"]
         self.setup = page_setup(self.scene.grid, self.buttons, self.mission.community if self.mission else "", "live",
-                                self.start_time)
+                                self.start_time, self.actions)
 
     def on_connect(self) -> None:
         for key in SUBSCRIPTIONS:
@@ -167,12 +183,14 @@ PUBLICATIONS:
         return {**self.setup, **self.scene.snapshot(), "time": self.moos_time()}
 
     async def command(self, command: dict) -> None:
-        """A page pressed a button (by index: a page cannot poke anything that is not configured)."""
+        """A page pressed a button or chose an action (by index: a page cannot poke anything that is
+        not configured)."""
         now = self.moos_time()
-        if command["cmd"] == "button":
+        choices = {"button": self.buttons, "action": self.actions}.get(command["cmd"])
+        if choices is not None:
             index = command.get("index")
-            if isinstance(index, int) and 0 <= index < len(self.buttons):
-                button = self.buttons[index]
+            if isinstance(index, int) and 0 <= index < len(choices):
+                button = choices[index]
                 for key, value in button.pokes:
                     self.notify(key, value, time=now)
                 pokes = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in button.pokes)

@@ -206,6 +206,20 @@ def merge_button(lines: list[Button]) -> Button:
     return Button(label, pokes)
 
 
+def parse_action(text: str) -> Button:
+    """A pMarineViewer `action` menu line: `MENU_KEY=deploy # DEPLOY=true # RETURN=false` (named by
+    its MENU_KEY) or plain `RETURN=true` (named by itself)."""
+    line = parse_button(text)
+    if line.label or not line.pokes:
+        raise ViewError(f"action {text!r}: expected [MENU_KEY=name #] VAR=value # ...")
+    (key, value), *rest = line.pokes
+    if key.upper() == "MENU_KEY":
+        if not rest:
+            raise ViewError(f"action {text!r}: MENU_KEY without a VAR=value to poke")
+        return Button(str(value), tuple(rest))
+    return merge_button([line])
+
+
 @dataclass
 class Vehicle:
     report: NodeReport

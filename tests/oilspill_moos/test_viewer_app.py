@@ -1,6 +1,6 @@
 """pMarineViewer as a MOOS app against a real moosdb, with a WebSocket client in the page's place:
 mail reaches the page, unreadable mail becomes a log line naming its source, a button press is
-poked with the community's warped time, a page sending nonsense is ignored, and a page from
+poked with the community's warped time, so is a chosen action, a page sending nonsense is ignored, and a page from
 another site cannot open the WebSocket."""
 import asyncio
 import json
@@ -26,14 +26,18 @@ async def next_updates(page, predicate, timeout=10.0):
                     return update
 
 
-def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server):
+def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server, tmp_path):
+    mission = tmp_path / "shoreside.moos"
+    mission.write_text(f"ServerPort = {moosdb_server.port}\nCommunity = shoreside\nMOOSTimeWarp = {WARP:g}\n"
+                       "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  action = MENU_KEY=hold # STATION_KEEP_ALL=true\n}\n")
+
     async def scenario():
-        app = MarineViewer(None, "pMarineViewer", port=moosdb_server.port, time_warp=WARP)
-        app.http_port_option = 0
+        app = MarineViewer(mission)
         poked = []
         watcher = MOOSClient("uOperatorWatch", port=moosdb_server.port, time_warp=WARP,
-                             on_mail=lambda mail: poked.extend(m for m in mail if m.key == "DEPLOY_ALL"))
+                             on_mail=lambda mail: poked.extend(m for m in mail if m.key != "NODE_REPORT"))
         watcher.register("DEPLOY_ALL")
+        watcher.register("STATION_KEEP_ALL")
         tasks = [asyncio.create_task(app.run_async()), asyncio.create_task(watcher.run())]
         try:
             await watcher.wait_connected(10)
@@ -44,6 +48,7 @@ def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server):
                                           origin=f"http://localhost:{app.server.port}") as page:
                 snapshot = json.loads(await page.recv())
                 assert snapshot["buttons"] == ["DEPLOY", "RETURN_ALL", "RE-PUSH BOUNDARY"]
+                assert snapshot["actions"] == ["hold"] and snapshot["community"] == "shoreside"
                 watcher.notify("NODE_REPORT", "NAME=abe,X=5,Y=-7,HDG=90,SPD=1.5,MODE=MODE@ACTIVE:OIL-PATH")
                 vehicle = await next_updates(page, lambda u: u["t"] == "vehicle")
                 assert (vehicle["name"], vehicle["x"], vehicle["phase"]) == ("abe", 5.0, "OIL-PATH")
@@ -55,8 +60,9 @@ def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server):
                 await page.send(json.dumps({"cmd": "button", "index": 0}))
                 note = await next_updates(page, lambda u: u["t"] == "note")
                 assert note["text"].startswith("DEPLOY: DEPLOY_ALL=true")
-                await async_wait_until(lambda: poked, 10)
-                assert [m.string for m in poked] == ["true"]
+                await page.send(json.dumps({"cmd": "action", "index": 0}))
+                await async_wait_until(lambda: len(poked) == 2, 10)
+                assert [(m.key, m.string) for m in poked] == [("DEPLOY_ALL", "true"), ("STATION_KEEP_ALL", "true")]
                 assert abs(poked[0].time - moos_time(WARP)) < 5 * WARP   # warped MOOS time, not the wall clock
         finally:
             app.stop()

@@ -18,6 +18,7 @@ from oilspill_moos.viewer.model import (
     Scene,
     ViewError,
     merge_button,
+    parse_action,
     parse_button,
     parse_node_report,
     parse_view,
@@ -121,6 +122,16 @@ def test_buttons_configured_as_in_pmarineviewer():
         merge_button([parse_button("DEPLOY")])
 
 
+def test_action_menu_lines_as_in_pmarineviewer():
+    assert parse_action("MENU_KEY=deploy # DEPLOY = true # RETURN = false") == Button(
+        "deploy", (("DEPLOY", "true"), ("RETURN", "false")))
+    assert parse_action("UPDATES_RETURN=speed=1.4") == Button("UPDATES_RETURN=speed=1.4",
+                                                              (("UPDATES_RETURN", "speed=1.4"),))
+    for bad in ("HOLD # X=1", "MENU_KEY=empty", "# "):
+        with pytest.raises(ViewError, match="action|button"):
+            parse_action(bad)
+
+
 def test_scene_follows_the_mission_and_snapshots_it():
     scene = Scene(trail_length=3)
     for i in range(5):
@@ -167,12 +178,14 @@ def test_settings_default_buttons_and_boundary_port_from_path_assign(tmp_path):
     moos.write_text("ServerPort = 9000\nCommunity = shoreside\nLatOrigin = 28.7\nLongOrigin = -88.4\n"
                     "ProcessConfig = pPathAssign\n{\n  boundary_port = 9321\n}\n"
                     "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  button_one = GO # DEPLOY_ALL=true\n"
-                    "  button_two = RETURN # RETURN_ALL=true\n  button_one = MOOS_MANUAL_OVERRIDE_ALL=false\n}\n")
+                    "  button_two = RETURN # RETURN_ALL=true\n  button_one = MOOS_MANUAL_OVERRIDE_ALL=false\n"
+                    "  action = RETURN=true\n}\n")
     mission = read_mission(moos)
     got = read_settings(mission.process_config("pMarineViewer"), mission)
     assert got["boundary_port"] == 9321 and got["http_port"] == 0 and got["http_host"] == "127.0.0.1"
     assert [b.label for b in got["buttons"]] == ["GO", "RETURN", "RETURN_ALL"]
     assert got["buttons"][0].pokes == (("DEPLOY_ALL", "true"), ("MOOS_MANUAL_OVERRIDE_ALL", "false"))
+    assert got["actions"] == [Button("RETURN=true", (("RETURN", "true"),))]
     assert [b.label for b in read_settings({}, None)["buttons"]] == ["DEPLOY", "RETURN_ALL"]
     moos.write_text(moos.read_text().replace("RETURN # RETURN_ALL=true", "RETURN # RETURN ALL=true"))
     mission = read_mission(moos)

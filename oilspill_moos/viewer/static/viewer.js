@@ -52,7 +52,8 @@ function setLink(up) {
 
 function loadSnapshot(msg) {
   const first = state.setup === null || state.setup.mode !== msg.mode;
-  state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons, t0: msg.t0 };
+  state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons, t0: msg.t0,
+    actions: msg.actions };
   state.vehicles.clear();
   state.markers.clear();
   state.trailLength = msg.trail_length;
@@ -130,7 +131,12 @@ function buildControls() {
     }
     box.appendChild(b);
   });
-  document.getElementById("controls").hidden = state.setup.buttons.length === 0;
+  const actions = state.setup.actions || [];
+  const menu = document.getElementById("actions");
+  menu.replaceChildren(...actions.map((label, index) => new Option(label, String(index))));
+  document.getElementById("action-row").hidden = actions.length === 0;
+  document.getElementById("do-action").onclick = () => send({ cmd: "action", index: Number(menu.value) });
+  document.getElementById("controls").hidden = state.setup.buttons.length === 0 && actions.length === 0;
   document.getElementById("community").textContent = state.setup.community
     ? "community " + state.setup.community : "";
 }
