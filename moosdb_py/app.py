@@ -149,6 +149,9 @@ class MOOSApp:
                     raise ConnectionError(f"{self.name}: {self.client.poisoned or 'cannot connect'}")
             next_tick = next_status = _time.monotonic()
             while not self._stop.is_set():
+                if comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
+                    comms.result()
+                    raise ConnectionError(f"{self.name}: {self.client.poisoned or 'comms ended'}")
                 mail, self._mail = self._mail, []
                 if mail:
                     self.on_new_mail(mail)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import asyncio
 import time
 
+import pytest
+
 from helpers import async_wait_until
 from moosdb_py.app import MOOSApp
 from moosdb_py.client import MOOSClient
@@ -113,3 +115,32 @@ def test_bad_configuration_is_reported_with_its_place(tmp_path, capsys):
     assert "step = -1 must be positive" in capsys.readouterr().err
     assert Counter.main(["--bogus"]) == 1
     assert "unknown arguments ['bogus']" in capsys.readouterr().err
+
+
+def test_an_app_whose_comms_die_fails_instead_of_running_deaf(moosdb_server):
+    """An exception in a mail callback (pShare takes mail straight from the client) ends the client's
+    run(): the app must stop with it, not iterate on without comms."""
+    class Broken(Counter):
+        def on_startup(self):
+            super().on_startup()
+            self.client.on_mail = self.take_mail_now
+
+        def take_mail_now(self, mail):
+            if any(m.key == "COUNTER_RESET" for m in mail):
+                raise KeyError("COUNTER_RESET")
+
+    async def scenario():
+        app = Broken(name="broken", port=moosdb_server.port, time_warp=4)
+        poker = MOOSClient("poker", port=moosdb_server.port)
+        poking = asyncio.create_task(poker.run())
+        await poker.wait_connected(5)
+        running = asyncio.create_task(app.run_async())
+        await async_wait_until(lambda: app.iterations > 0)
+        poker.notify("COUNTER_RESET", 1.0)
+        try:
+            await asyncio.wait_for(running, 10)
+        finally:
+            poker.close()
+            await poking
+    with pytest.raises(KeyError, match="COUNTER_RESET"):
+        asyncio.run(scenario())

@@ -117,14 +117,22 @@ class Watcher:
     def __init__(self, community: str, port: int, keys: list[str]):
         self.mail: list = []
         self.keys = keys
+        self.connections = 0
         self.client = MOOSClient(f"test_{community}", "127.0.0.1", port, on_mail=self.mail.extend,
-                                 on_connect=lambda: [self.client.register(k) for k in self.keys], time_warp=WARP)
+                                 on_connect=self.on_connect, time_warp=WARP)
+
+    def on_connect(self) -> None:
+        self.connections += 1
+        for key in self.keys:
+            self.client.register(key)
 
     def values(self, key: str) -> list:
         return [m.value for m in self.mail if m.key == key]
 
-    def reporters(self) -> set[str]:
-        return {m.community for m in self.mail if m.key == "NODE_REPORT"}
+    def reporters(self, since: float = 0.0) -> set[str]:
+        """Communities whose NODE_REPORT was stamped after `since` (MOOS time): mail still in the socket
+        from before a crash does not count."""
+        return {m.community for m in self.mail if m.key == "NODE_REPORT" and m.time > since}
 
 
 def test_fleet_bridges_survive_restarts(tmp_path):
@@ -157,20 +165,21 @@ def test_fleet_bridges_survive_restarts(tmp_path):
         assert boats["abe"].values("X") == [] and boats["cal"].values("X") == []
         # a vehicle crashes and is restarted: it handshakes again and its bridges come back
         fleet.kill("ben")
-        shore.mail.clear()
+        restarted = shore.client.moos_time()
         fleet.start("ben")
-        await until(lambda: "ben" in shore.reporters())
+        await until(lambda: "ben" in shore.reporters(since=restarted))
         await poke_until("X_BEN", "after-restart", ["ben"])
         # malformed datagrams on a vehicle's pShare port are dropped; nothing else is disturbed
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
             for _ in range(3):
                 raw.sendto(b"\xff" * 40, ("127.0.0.1", udp_base + 1))
         # the shoreside crashes and is restarted: every vehicle is bridged again
+        connections = shore.connections
         fleet.kill("shoreside")
+        restarted = shore.client.moos_time()
         fleet.start("shoreside")
-        await until(lambda: shore.client.connected)
-        shore.mail.clear()
-        await until(lambda: shore.reporters() >= set(vehicles))
+        await until(lambda: shore.connections > connections)   # `connected` may not have noticed the crash yet
+        await until(lambda: shore.reporters(since=restarted) >= set(vehicles))
         await poke_until("DEPLOY_ALL", "after-shore-restart", vehicles)
         for watcher in (shore, *boats.values()):
             watcher.client.close()
