@@ -51,10 +51,12 @@ class MapServer:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}/"
 
-    def page_origins(self) -> set[str]:
-        """Browsers may open the WebSocket only from this server's own page: a page from anywhere
-        else (another tab) must not press the buttons. Clients without an Origin are not browsers."""
-        return {f"http://{name}:{self.port}" for name in (self.host, "127.0.0.1", "localhost")}
+    def own_page(self, origin: str, host: str) -> bool:
+        """Browsers may open the WebSocket only from this server's own page (loaded by the name the
+        WebSocket request uses, or by a loopback name): a page from anywhere else (another tab) must
+        not press the buttons. Clients without an Origin are not browsers."""
+        loopback = {f"http://{name}:{self.port}" for name in (self.host, "127.0.0.1", "localhost")}
+        return origin in loopback or (bool(host) and origin in (f"http://{host}", f"https://{host}"))
 
     async def start(self) -> None:
         self._server = await serve(self._session, self.host, self.port, process_request=self._static,
@@ -69,7 +71,7 @@ class MapServer:
         path = request.path.split("?")[0]
         if path == "/ws":
             origin = request.headers.get("Origin")
-            if origin is not None and origin not in self.page_origins():
+            if origin is not None and not self.own_page(origin, request.headers.get("Host", "")):
                 return connection.respond(HTTPStatus.FORBIDDEN, f"pages from {origin} may not steer this mission\n")
             return None
         found = self._files.get(path)

@@ -12,6 +12,7 @@ from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import moos_time
 from oilspill_moos.viewer.app import MarineViewer
+from oilspill_moos.viewer.server import MapServer
 
 WARP = 20.0
 
@@ -70,3 +71,11 @@ def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server, tmp_pa
             await asyncio.wait_for(asyncio.gather(*tasks, return_exceptions=True), 10)
 
     asyncio.run(scenario())
+
+
+def test_websocket_only_from_the_viewers_own_page():
+    server = MapServer("0.0.0.0", 8080, dict, None)   # served to the whole network: opened by any name
+    assert server.own_page("http://shore.example:8080", "shore.example:8080")
+    assert server.own_page("http://localhost:8080", "127.0.0.1:8080")
+    assert not server.own_page("http://evil.example", "shore.example:8080")
+    assert not server.own_page("http://shore.example:8081", "shore.example:8080")
