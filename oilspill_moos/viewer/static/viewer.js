@@ -293,10 +293,13 @@ function drawBoundary() {
   ctx.fillText("spill boundary", lx + 4, ly - 4);
 }
 
+// Seglists (the helm's waypoint lists) first and faint, so the polygons and points drawn over
+// them stay readable where the fleet shares one loop.
+const MARKER_ORDER = { seglist: 0, polygon: 1, point: 2 };
 function drawMarkers() {
-  for (const m of state.markers.values()) {
+  const markers = [...state.markers.values()].sort((a, b) => MARKER_ORDER[a.kind] - MARKER_ORDER[b.kind]);
+  for (const m of markers) {
     const style = m.style || {};
-    const edge = cssColor(style.edge_color) || (m.kind === "polygon" ? "#ffa94d" : "#b0c4de");
     if (m.kind === "point") {
       const [sx, sy] = toScreen(...m.points[0]);
       const r = Math.max(2, Number(style.vertex_size) || 4);
@@ -308,10 +311,14 @@ function drawMarkers() {
     }
     if (m.points.length < 2) continue;
     path(m.points, m.kind === "polygon");
-    ctx.strokeStyle = edge; ctx.lineWidth = Math.max(1, Number(style.edge_size) || 1.5);
-    ctx.setLineDash(m.kind === "polygon" ? [6, 4] : []);
+    const polygon = m.kind === "polygon";
+    ctx.strokeStyle = cssColor(style.edge_color) || (polygon ? "#ffa94d" : "#b0c4de");
+    ctx.lineWidth = polygon ? Math.max(1, Number(style.edge_size) || 1.5) : 1;
+    ctx.globalAlpha = polygon ? 1 : 0.45;
+    ctx.setLineDash(polygon ? [6, 4] : []);
     ctx.stroke();
     ctx.setLineDash([]);
+    ctx.globalAlpha = 1;
   }
 }
 
