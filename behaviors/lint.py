@@ -2,7 +2,8 @@
 
 Each file is run through nsplug (with the `-D VAR=value` defines; unresolved macros stay as nsplug
 leaves them) and parsed; every problem is printed as `file:line: message`. The exit status is 0
-only when every file parses.
+only when every file parses. What a .moos reader ignores (stray lines, a second block of one name)
+goes to stderr as `file:line: warning: ...`: the mission runs, but likely not as meant.
 """
 from __future__ import annotations
 
@@ -51,8 +52,10 @@ def lint_bhv(path: Path, defines: dict) -> list[MissionFileError]:
     return [e for spec in bhv.behaviors for e in check_behavior_params(spec)]
 
 
-def lint_moos(path: Path, defines: dict) -> list[MissionFileError]:
+def lint_moos(path: Path, defines: dict, warnings: list[str] | None = None) -> list[MissionFileError]:
     mission = read_mission(path, defines)
+    if warnings is not None:
+        warnings += mission.warnings
     problems = []
     for attr, name in GLOBALS.items():
         try:
@@ -71,11 +74,12 @@ def lint_moos(path: Path, defines: dict) -> list[MissionFileError]:
     return problems
 
 
-def lint(path: Path, defines: dict) -> list[str]:
-    """Problems of one file as `file:line: message` strings."""
-    checker = lint_bhv if path.suffix.lower() == ".bhv" else lint_moos
+def lint(path: Path, defines: dict, warnings: list[str] | None = None) -> list[str]:
+    """Problems of one file as `file:line: message` strings; a .moos file's warnings go to `warnings`."""
     try:
-        return [str(e) for e in checker(path, defines)]
+        if path.suffix.lower() == ".bhv":
+            return [str(e) for e in lint_bhv(path, defines)]
+        return [str(e) for e in lint_moos(path, defines, warnings)]
     except MissionFileError as exc:
         return [str(exc)]
 
@@ -92,9 +96,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     failed = False
     for path in args.files:
-        problems = lint(path, defines)
+        warnings: list[str] = []
+        problems = lint(path, defines, warnings)
         for line in problems:
             print(line)
+        for warning in warnings:
+            where, _, message = warning.partition(": ")
+            print(f"{where}: warning: {message}", file=sys.stderr)
         failed = failed or bool(problems)
     return 1 if failed else 0
 

@@ -43,3 +43,14 @@ def test_console_script_runs(tmp_path):
     bhv.write_text("initialize DEPLOY = false\n")
     exe = os.path.join(os.path.dirname(sys.executable), "moos-lint")
     assert subprocess.run([exe, str(bhv)], capture_output=True, timeout=30).returncode == 0
+
+
+def test_mission_warnings_go_to_stderr_without_failing(tmp_path, capsys):
+    moos = tmp_path / "w.moos"
+    moos.write_text("ServerPort = 9000\nstray words\nProcessConfig = a\n{\n}\nProcessConfig = a\n{\n}\n")
+    assert main([str(moos)]) == 0
+    out, err = capsys.readouterr()
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 2 and lines[0] == f"{moos}:2: warning: ignored line outside any block: stray words"
+    assert lines[1].startswith(f"{moos}:6: warning: second block for a is ignored")
