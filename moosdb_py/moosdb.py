@@ -19,6 +19,7 @@ import time as _time
 from dataclasses import dataclass, field
 
 from . import codec
+from .app import print_page
 from .message import (BINARY, COMMAND, DOUBLE, NOT_SET, NOTIFY, NULL_MSG, POISON, REGISTER,
                       SERVER_REQUEST, STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER,
                       WILDCARD_UNREGISTER, MOOSMsg, moos_time)
@@ -577,6 +578,27 @@ def _size(n: int) -> str:
 
 
 # -- command line --------------------------------------------------------------------------------
+EXAMPLE = """\
+// The MOOSDB has no ProcessConfig block: it reads these globals of the mission file.
+ServerHost    = localhost   // where clients look for the DB (the DB itself binds --host, 127.0.0.1)
+ServerPort    = 9000        // TCP port (default 9000)
+Community     = alpha       // community name (default #1); the DB's own name is MOOSDB_<Community>
+MOOSTimeWarp  = 1           // time warp of DB time and the DB_* stamps (default 1)
+ClientTimeout = 5           // drop clients silent this many seconds (default 5)
+"""
+INTERFACE = """\
+SUBSCRIPTIONS:
+  none (server requests ALL, VAR_SUMMARY, PROC_SUMMARY, DB_CLEAR are answered)
+PUBLICATIONS:
+  DB_TIME, DB_UPTIME      DB time and uptime (s), every 2 s
+  DB_CLIENTS              connected client names, comma-terminated
+  DB_VARSUMMARY           one line per variable: name, time, writer, rate, type, value
+  DB_RWSUMMARY            per client: name=what it reads&what it writes
+  DB_QOS                  per client: timing-message latencies
+  DB_EVENT                connected=<name> / disconnected=<name>
+"""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="moosdb", description="A MOOSDB in pure Python, wire-compatible with the C++ MOOSDB "
@@ -594,6 +616,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max_queue", type=int, default=DEFAULT_MAX_QUEUE,
                    help="largest per-client outgoing backlog, bytes (bigger: client dropped)")
     p.add_argument("-v", "--verbose", action="store_true", help="log every connection and rejected write")
+    p.add_argument("--example", action="store_true", help="print the mission globals the DB reads")
+    p.add_argument("--interface", action="store_true", help="print what the DB publishes")
     return p
 
 
@@ -623,6 +647,9 @@ async def _serve(db: MOOSDB) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.example or args.interface:
+        print_page(EXAMPLE if args.example else INTERFACE)
+        return 0
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     try:
