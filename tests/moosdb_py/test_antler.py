@@ -201,7 +201,8 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
         try:
             # the logger, the simulator and the helm are up and registered once their first posts are seen
             await async_wait_until(lambda: {"LOGGER_DIRECTORY", "IVPHELM_STATE", "NAV_X"} <= latest.keys(), timeout=60)
-            await tool("poke", "--port", port, "--warp", 4, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false")
+            # no --warp: uPokeDB stamps with the DB's clock, as the helm and the PID want under warp 4
+            await tool("poke", "--port", port, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false")
             await async_wait_until(lambda: latest.get("NAV_SPEED", 0) > 0.5 and latest["NAV_X"] > 1, timeout=60)
             return await tool("xms", "--port", port, "--warp", 4, "DEPLOY", "DESIRED_SPEED", "IVPHELM_STATE", "--once")
         finally:
