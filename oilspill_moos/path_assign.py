@@ -18,6 +18,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
+from behaviors.geometry import fmt_num
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import config_float, config_str
 from oilspill_moos.geodesy import LocalGrid
@@ -127,6 +128,24 @@ def format_points(points: Iterable[Iterable[float]]) -> str:
     return ":".join(f"{x:.1f},{y:.1f}" for x, y in points)
 
 
+_UNSAFE = re.compile(r"[\s,={}#]+")
+
+
+def format_forecast(boundary: Boundary, cycle: int) -> str:
+    """OILSPILL_FORECAST: one accepted horizon with what a viewer needs to draw it and its band.
+
+    `pts={..}` goes last and the source loses the characters that separate MOOS fields, so the
+    string splits on commas outside the braces like any VIEW_* string.
+    """
+    fields = [f"cycle={cycle}", f"horizon={fmt_num(boundary.horizon_h)}"]
+    if boundary.time is not None:
+        fields.append(f"valid={fmt_num(boundary.time)}")
+    fields += [f"uncertainty={fmt_num(boundary.uncertainty_m)}",
+               f"source={_UNSAFE.sub('_', boundary.source) or 'unknown'}",
+               f"pts={{{format_points(boundary.polygon)}}}"]
+    return ",".join(fields)
+
+
 def parse_report(text: str) -> dict[str, str]:
     """`KEY=val,KEY=val` (NODE_REPORT, VEHICLE_COORDINATES) -> dict with lower-case keys."""
     fields = {}
@@ -178,6 +197,7 @@ class Coordinator:
     settings: Settings = field(default_factory=Settings)
     phase: str = IDLE
     seq: int = 0
+    cycles: int = 0     # forecast cycles accepted; the horizons of one forecast share one
     vehicles: dict[str, Vehicle] = field(default_factory=dict)
     forecasts: dict[float, Boundary] = field(default_factory=dict)
     forecast_time: float | None = None  # issue time of the forecast in force
@@ -213,11 +233,13 @@ class Coordinator:
                 raise BoundaryError(f"boundary flood: the last one is {now - self._last_cycle:.1f} s old, "
                                     f"next accepted in {wait:.1f} s")
             self.forecasts = {}
+            self.cycles += 1
         self.forecast_time = issued
         self.forecasts[boundary.horizon_h] = boundary
         self.seq += 1
         self._last_cycle = now
         self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(boundary.polygon)}}},label=oilspill_{self.seq}")
+        self._post("OILSPILL_FORECAST", format_forecast(boundary, self.cycles))
         if not (same_forecast and self.phase == STATION_KEEPING):  # another horizon joins the cycle under way
             self.boundary_received = now
             self._begin_station_keeping(now)
@@ -454,6 +476,9 @@ SUBSCRIPTIONS:
 
 PUBLICATIONS:
   OILSPILL_BOUNDARY            pts={...},label=oilspill_<seq>: the boundary in force
+  OILSPILL_FORECAST            every accepted line, for viewers: cycle=<n>,horizon=<h>,
+                               [valid=<utc s>,]uncertainty=<m>,source=<name>,pts={x,y:...}
+                               (local metres; the horizons of one forecast share the cycle)
   VIEW_POLYGON                 the stand-off loop in force (label=standoff), for viewers
   OILSPILL_PHASE               STATION-KEEPING | STARTING-POSITION | OIL-PATH
   STATION_KEEP_ALL, STATION_KEEP_<V>       true on a new boundary, false when moving on

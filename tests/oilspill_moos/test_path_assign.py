@@ -165,12 +165,30 @@ def test_horizons_of_one_forecast_are_not_a_flood_and_the_matching_one_is_chosen
     far = tuple((x + 20000, y + 20000) for x, y in SQUARE)  # the 7 h outline, about 7.8 h away
     issued = 1000.0  # the lines carry their valid time: issue time + horizon, as the forecaster sends them
     c.offer_boundary(Boundary(near, time=issued + 3 * 3600, horizon_h=3), 0.0)
-    c.offer_boundary(Boundary(far, time=issued + 7 * 3600, horizon_h=7), 0.5)
+    c.offer_boundary(Boundary(far, time=issued + 7 * 3600, horizon_h=7, uncertainty_m=250.5, source="ltc-rk4"), 0.5)
     assert c.forecast_time == issued and len(c.forecasts) == 2
+    assert [f.split(",pts=")[0] for f in posts(c, "OILSPILL_FORECAST")] == [
+        "cycle=1,horizon=3,valid=11800,uncertainty=0,source=tcp",
+        "cycle=1,horizon=7,valid=26200,uncertainty=250.5,source=ltc-rk4"]
     assert posts(c, "OILSPILL_PHASE") == [STATION_KEEPING]  # the second horizon joined the cycle under way
     c.on_coordinates("vname=abe,x=0,y=0", 1.0)
     assert c.phase == STARTING_POSITION
     assert c.plan.starts["abe"][0] > 10000  # the 7 h outline: 3 h would be long gone on arrival
+
+
+def test_every_accepted_line_is_posted_as_a_forecast_numbered_by_its_cycle():
+    c = Coordinator(Settings(min_replan_interval=0))
+    c.offer_boundary(Boundary(tuple(SQUARE), source="pts"), 0.0)
+    c.offer_boundary(Boundary(tuple(SQUARE), time=5.0 + 3600, horizon_h=1, source="my model, v2={beta}#1"), 1.0)
+    c.offer_boundary(Boundary(tuple(SQUARE), time=5.0 + 7200, horizon_h=2), 2.0)
+    with pytest.raises(BoundaryError, match="older than"):
+        c.offer_boundary(Boundary(tuple(SQUARE), time=4.0 + 3600, horizon_h=1), 3.0)
+    c.offer_boundary(Boundary(tuple(SQUARE)), 4.0)
+    first, *rest = posts(c, "OILSPILL_FORECAST")
+    assert first == "cycle=1,horizon=0,uncertainty=0,source=pts,pts={0.0,0.0:400.0,0.0:400.0,400.0:0.0,400.0}"
+    assert [dict(item.split("=", 1) for item in f.split(",pts=")[0].split(","))["cycle"] for f in rest] == [
+        "2", "2", "3"]
+    assert "source=my_model_v2_beta_1," in rest[0]   # the MOOS field separators are gone
 
 
 def test_dropout_in_oil_path_reshares_and_rejoin_reshares_again():
@@ -285,9 +303,17 @@ def test_app_serves_boundaries_and_drives_the_phases(moosdb_server, tmp_path):
             probe.notify("NODE_REPORT", "garbage")
             await async_wait_until(lambda: "NODE_REPORT" in str(keys().get("OILSPILL_WARNING")), 5)
             await async_wait_until(lambda: "phase=OIL-PATH" in str(keys().get("OILSPILL_STATUS")), 5)
-            geo = (b'{"crs":"EPSG:4326","polygon":[[-88.3872,28.7376],[-88.3862,28.7376],[-88.3862,28.7386]],'
-                   b'"time":2e9}\n')
-            assert await ask(geo) == "OK 2"
+            for seq, horizon in ((2, 3), (3, 7)):   # two horizons of one forecast, issued at t = 2e9
+                geo = ('{"crs":"EPSG:4326","polygon":[[-88.3872,28.7376],[-88.3862,28.7376],[-88.3862,28.7386]],'
+                       f'"time":{2e9 + horizon * 3600:.0f},"horizon_h":{horizon},"uncertainty_m":{10 * horizon}}}\n')
+                assert await ask(geo.encode()) == f"OK {seq}"
+            forecasts = lambda: [m.value for m in seen if m.key == "OILSPILL_FORECAST"]  # noqa: E731
+            await async_wait_until(lambda: len(forecasts()) == 3, 5)
+            assert forecasts()[0] == ("cycle=1,horizon=0,uncertainty=0,source=pts,"
+                                      "pts={0.0,100.0:100.0,100.0:100.0,200.0:0.0,200.0}")
+            assert [f.split(",pts=")[0] for f in forecasts()[1:]] == [
+                "cycle=2,horizon=3,valid=2000010800,uncertainty=30,source=json",
+                "cycle=2,horizon=7,valid=2000025200,uncertainty=70,source=json"]
             writer.close()
         finally:
             app.stop()
