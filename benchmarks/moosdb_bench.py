@@ -8,6 +8,10 @@ MOOSDB can be measured side by side:
 
 Load comes from raw-socket clients with pre-encoded packets (100 notifies each, as a busy
 C++ async client sends them) in separate processes, so the DB, not the clients, is measured.
+The publishers stay at most WINDOW deliveries ahead of what the subscribers have read: without
+that, a DB faster than the subscribers' process piles up mail until it drops them as stuck readers.
+Besides rates it prints the DB's own CPU time per message (from /proc), which does not depend on
+how busy the machine is.
 """
 from __future__ import annotations
 
@@ -27,6 +31,7 @@ from moosdb_py import codec
 from moosdb_py.message import MOOSMsg
 
 BATCH = 100
+WINDOW = 200_000      # deliveries the publishers may run ahead of the subscribers (a few MB per subscriber)
 DEFAULT_DB = f"{sys.executable} -m moosdb_py.moosdb --port {{port}}"
 
 
@@ -102,8 +107,9 @@ def cpu_seconds(pid: int) -> float:
 
 
 # -- throughput: publishers and subscribers in two processes ----------------------------------------
-def publishers(port: int, n: int, tag: str, ready, go, stop) -> None:
-    """n publishers, each writing BENCH in packets of 100 notifies as fast as the DB takes them."""
+def publishers(port: int, n: int, tag: str, ready, go, stop, n_sub: int, sent, delivered) -> None:
+    """n publishers, each writing BENCH in packets of 100 notifies as fast as the DB takes them
+    (and the subscribers read them)."""
     sel = selectors.DefaultSelector()
     pending = {}
     packets = []
@@ -118,17 +124,22 @@ def publishers(port: int, n: int, tag: str, ready, go, stop) -> None:
     ready.set()
     go.wait()
     while not stop.is_set():
+        if sent.value * n_sub - delivered.value > WINDOW:
+            time.sleep(0.0002)
+            continue
         for key, _ in sel.select(0.1):
             try:
                 rest = pending[key.data][key.fileobj.send(pending[key.data]):]
             except BlockingIOError:
                 continue
+            if not rest:
+                sent.value += BATCH
             pending[key.data] = rest if rest else memoryview(packets[key.data])
     for key in list(sel.get_map().values()):
         key.fileobj.close()
 
 
-def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result) -> None:
+def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result, delivered) -> None:
     """n subscribers of BENCH counting what arrives in the measuring window (after a warm-up)."""
     sel = selectors.DefaultSelector()
     socks = []
@@ -151,6 +162,7 @@ def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result) 
             except BlockingIOError:
                 continue
             got = count_messages(key.data, data)
+            delivered.value += got
             if time.monotonic() >= start:
                 counted += got
         if now - last_timing > 1.0:          # stay alive (client timeout)
@@ -169,11 +181,12 @@ def throughput(pid: int, port: int, n_pub: int, n_sub: int, seconds: float) -> t
     ctx = mp.get_context("fork")
     subs_ready, pubs_ready, go, stop = ctx.Event(), ctx.Event(), ctx.Event(), ctx.Event()
     received = ctx.Value("q", 0)
+    sent, delivered = ctx.RawValue("q", 0), ctx.RawValue("q", 0)
     tag = f"{n_pub}x{n_sub}"
-    subs = ctx.Process(target=subscribers, args=(port, n_sub, tag, subs_ready, go, seconds, received))
+    subs = ctx.Process(target=subscribers, args=(port, n_sub, tag, subs_ready, go, seconds, received, delivered))
     subs.start()
     subs_ready.wait(300)
-    pubs = ctx.Process(target=publishers, args=(port, n_pub, tag, pubs_ready, go, stop))
+    pubs = ctx.Process(target=publishers, args=(port, n_pub, tag, pubs_ready, go, stop, n_sub, sent, delivered))
     pubs.start()
     pubs_ready.wait(300)
     go.set()

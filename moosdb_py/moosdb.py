@@ -110,7 +110,8 @@ class ClientConnection(asyncio.Protocol):
         self.name = ""
         self.asynchronous = False
         self.consolidation = 0.0
-        self.held: list[bytes] = []
+        self.held: list[bytes] = []     # chunks of back-to-back messages
+        self.held_count = 0
         self.held_bytes = 0
         self.subscribed: set[str] = set()
         self.published: set[str] = set()
@@ -171,20 +172,22 @@ class ClientConnection(asyncio.Protocol):
         self.db.admit(self, msgs[0])
 
     # -- output -------------------------------------------------------------------------------
-    def queue(self, wires: list[bytes]) -> None:
+    def queue(self, chunk: bytes, count: int) -> None:
+        """Hold `count` messages (back to back in `chunk`) for this client."""
         if self.state == "closed":
             return
-        self.held += wires
-        self.held_bytes += sum(map(len, wires))
+        self.held.append(chunk)
+        self.held_count += count
+        self.held_bytes += len(chunk)
         if self.asynchronous:
             self.db.dirty[self] = None
         elif self.held_bytes > self.db.max_queue:
             self.drop(f"held mail over {self.db.max_queue} bytes (synchronous client not polling)")
 
-    def take_held(self) -> list[bytes]:
-        held = self.held
-        self.held, self.held_bytes = [], 0
-        return held
+    def take_held(self) -> tuple[list[bytes], int]:
+        held, count = self.held, self.held_count
+        self.held, self.held_count, self.held_bytes = [], 0, 0
+        return held, count
 
     def send(self, packet: bytes) -> None:
         if self.state == "closed":
@@ -211,7 +214,7 @@ class ClientConnection(asyncio.Protocol):
             return
         log.warning("dropping %s: %s", self, reason)
         self.state, self.drop_reason = "closed", reason
-        self.held, self.held_bytes = [], 0
+        self.held, self.held_count, self.held_bytes = [], 0, 0
         self.transport.abort()
 
 
@@ -344,7 +347,7 @@ class MOOSDB:
         dirty, self.dirty = self.dirty, {}
         for conn in dirty:
             if conn.held:
-                conn.send(codec.pack_packet(conn.take_held()))
+                conn.send(codec.pack_packet(*conn.take_held()))
 
     # -- packet processing (spec §5) -----------------------------------------------------------
     def process_packet(self, conn: ClientConnection, packet: bytes) -> None:
@@ -354,7 +357,9 @@ class MOOSDB:
         now = self.now()
         head: list[bytes] = []
         if found[0].msg_type == TIMING:
-            timing = codec.decode_message(packet, found.pop(0).start)[0]
+            first = found[0]
+            timing = codec.decode_message(packet, first.start)[0]
+            found[0] = first._replace(bounds=first.bounds[1:])     # any further ones are ignored
             self._audit(conn, now, timing.time)
             timing.double, timing.double_aux = now, conn.consolidation
             head.append(codec.encode_message(timing))
@@ -362,77 +367,69 @@ class MOOSDB:
             head.insert(0, codec.encode_message(MOOSMsg(NULL_MSG, DOUBLE, double=now)))
         replies: list[bytes] = []
         community = self.community_field
-        run: list[bytes] = []       # consecutive writes of one variable by one source go as a batch
-        first: codec.WireMsg | None = None
-        for where in found:
-            mtype = where.msg_type
+        for run in found:
+            mtype = run.msg_type
             if mtype == NOTIFY:
-                if run and (where.key != first.key or where.source != first.source
-                            or where.data_type != first.data_type):
-                    self.notify(first.key, first.data_type, first.source, run, now)
-                    run = []
-                if not run:
-                    first = where
-                    conn.published.add(where.key)
-                run.append(codec.fill_community(packet, where, community) if where.community_len == 0
-                           else packet[where.start:where.end])
-                continue
-            if run:
-                self.notify(first.key, first.data_type, first.source, run, now)
-                run = []
-            if mtype in (COMMAND, NULL_MSG):
-                continue
-            else:
-                msg = codec.decode_message(packet, where.start)[0]
-                if mtype == REGISTER:
-                    self.register(conn, msg.key, msg.double)
-                elif mtype == UNREGISTER:
-                    self.unregister(conn, msg.key)
-                elif mtype == WILDCARD_REGISTER or mtype == WILDCARD_UNREGISTER:
-                    self._wildcard(conn, msg)
-                elif mtype == SERVER_REQUEST:
-                    replies[:0] = self.server_request(msg, now)
-                else:
-                    log.debug("%s: ignoring message type %r", conn, mtype)
-        if run:
-            self.notify(first.key, first.data_type, first.source, run, now)
+                conn.published.add(run.key)
+                self.notify(run, codec.run_bytes(packet, run, community), now)
+            elif mtype != COMMAND and mtype != NULL_MSG:
+                for start in run.bounds[:-1]:
+                    self._request(conn, codec.decode_message(packet, start)[0], replies, now)
         self.refresh_if_due()
-        out = head + replies + conn.take_held()
-        if out:
-            conn.send(codec.pack_packet(out))
+        held, count = conn.take_held()
+        if head or replies or held:
+            conn.send(codec.pack_packet(head + replies + held, len(head) + len(replies) + count))
 
-    def notify(self, key: str, data_type: str, source: str, wires: list[bytes], now: float) -> None:
-        """Store writes of `key` by `source` (as the bytes to forward) and queue them for the subscribers.
+    def _request(self, conn: ClientConnection, msg: MOOSMsg, replies: list[bytes], now: float) -> None:
+        mtype = msg.msg_type
+        if mtype == REGISTER:
+            self.register(conn, msg.key, msg.double)
+        elif mtype == UNREGISTER:
+            self.unregister(conn, msg.key)
+        elif mtype == WILDCARD_REGISTER or mtype == WILDCARD_UNREGISTER:
+            self._wildcard(conn, msg)
+        elif mtype == SERVER_REQUEST:
+            replies[:0] = self.server_request(msg, now)
+        else:
+            log.debug("%s: ignoring message type %r", conn, mtype)
+
+    def notify(self, run: codec.WireRun, chunk: bytes, now: float) -> None:
+        """Store the run's writes (as the bytes to forward, back to back in `chunk`) and queue them for
+        the subscribers.
 
         All arrived in one packet, so at one DB time: a throttled subscriber gets the first only.
         """
+        key, data_type = run.key, run.data_type
         var = self.vars.get(key)
         if var is None:
             var = self.vars[key] = DBVar(key, window_start=now)
         if var.data_type == NOT_SET:
             var.data_type = data_type
-            self._apply_filters(var, source)
+            self._apply_filters(var, run.source)
         elif var.data_type != data_type:
-            log.info("rejected write of %s by %s: %s is of type %s, not %s", key, source, key, var.data_type,
+            log.info("rejected write of %s by %s: %s is of type %s, not %s", key, run.source, key, var.data_type,
                      data_type)
             return
-        var.wire = wires[-1]
-        var.source = source
+        bounds, count = run.bounds, run.count
+        grow = (len(chunk) - bounds[-1] + bounds[0]) // count      # the community filled in, per message
+        var.wire = chunk[len(chunk) - (bounds[-1] - bounds[-2] + grow):] if count > 1 else chunk
+        var.source = run.source
         var.written_time = now
-        var.window_writes += len(wires)
+        var.window_writes += count
         for conn, sub in var.subscribers.items():
             if sub[0] <= 0.0:
-                conn.queue(wires)
+                conn.queue(chunk, count)
             elif now - sub[1] >= sub[0]:
                 sub[1] = now
-                conn.queue(wires[:1])
+                conn.queue(chunk[:bounds[1] - bounds[0] + grow] if count > 1 else chunk, 1)
 
     def post(self, key: str, value: float | str) -> None:
         """A notify by the DB itself (its DB_* variables)."""
         now = self.now()
         msg = MOOSMsg.notification(key, value, time=now, source=self.name)
         msg.community = self.community
-        self.notify(key, msg.data_type, self.name, [codec.encode_message(msg)], now)
+        wire = codec.encode_message(msg)
+        self.notify(codec.scan_message(wire), wire, now)
 
     def register(self, conn: ClientConnection, key: str, interval: float) -> None:
         if not conn.name:
@@ -445,7 +442,7 @@ class MOOSDB:
         conn.subscribed.add(key)
         if var.written:
             sub[1] = self.now()
-            conn.queue([var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1)])
+            conn.queue(var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1), 1)
 
     def unregister(self, conn: ClientConnection, key: str) -> None:
         var = self.vars.get(key)

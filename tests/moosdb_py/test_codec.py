@@ -66,7 +66,7 @@ def test_splices_equal_full_encodings():
     packet = codec.encode_packet([MOOSMsg(), msg])
     where = codec.scan_packet(packet)[1]
     assert (where.msg_type, where.data_type, where.source, where.key) == ("N", "S", "pub", "X")
-    spliced = codec.fill_community(packet, where, codec.string_field(b"#1"))
+    spliced = codec.run_bytes(packet, where, codec.string_field(b"#1"))
     msg.community = "#1"
     assert spliced == codec.encode_message(msg)
     msg.id = -1
@@ -117,28 +117,50 @@ def test_value_types():
         MOOSMsg.notification("A", None, time=0)
 
 
+def _messages(runs):
+    return [(run, s, e) for run in runs for s, e in zip(run.bounds, run.bounds[1:])]
+
+
 @settings(max_examples=60, deadline=None)
 @given(picks=st.lists(st.tuples(st.sampled_from(["X", "NAV_X", "Y"]), st.sampled_from(["a", "bb"]),
-                                st.sampled_from(["", "#1"]), st.one_of(floats, names)), min_size=1, max_size=12))
-def test_scan_packet_agrees_with_decode(picks):
-    """Runs of same-prefix messages take the fast path; it must locate exactly what decoding finds."""
+                                st.sampled_from(["", "#1"]), st.one_of(floats, names)), min_size=1, max_size=12),
+       repeat=st.integers(1, 12))
+def test_scan_packet_agrees_with_decode(picks, repeat):
+    """Runs of same-prefix messages take the fast paths; they must locate exactly what decoding finds,
+    and forward exactly the full encodings with the community filled in."""
     msgs = []
-    for i, (key, source, community, value) in enumerate(picks):
+    for i, (key, source, community, value) in enumerate(p for p in picks for _ in range(repeat)):
         msg = MOOSMsg.notification(key, value, time=float(i), source=source, msg_id=i)
         msg.community = community
         msgs.append(msg)
     packet = codec.encode_packet(msgs)
-    found = codec.scan_packet(packet)
-    assert [(w.msg_type, w.data_type, w.source, w.key, w.community_len) for w in found] == \
+    runs = codec.scan_packet(packet)
+    found = _messages(runs)
+    assert [(r.msg_type, r.data_type, r.source, r.key, r.community_len) for r, _, _ in found] == \
         [(m.msg_type, m.data_type, m.source, m.key, len(m.community)) for m in msgs]
-    assert [codec.decode_message(packet[w.start:w.end])[0] for w in found] == msgs
-    assert all(packet[w.community_at:w.community_at + 4] == len(m.community).to_bytes(4, "little")
-               for w, m in zip(found, msgs))
+    assert [codec.decode_message(packet[s:e])[0] for _, s, e in found] == msgs
+    assert all(packet[s + r.community_rel:s + r.community_rel + 4] == len(m.community).to_bytes(4, "little")
+               for (r, s, _), m in zip(found, msgs))
+    forwarded = b"".join(codec.run_bytes(packet, run, codec.string_field(b"#7")) for run in runs)
+    for msg in msgs:
+        msg.community = msg.community or "#7"
+    assert forwarded == b"".join(map(codec.encode_message, msgs))
 
 
-def test_scan_packet_fast_path_still_checks_lengths():
-    same = [MOOSMsg.notification("X", "abc", time=1.0, source="p") for _ in range(3)]
+def test_long_runs_are_one_run_each():
+    msgs = ([MOOSMsg.notification("NAV_X", float(i), time=1.0, source="sim", msg_id=i) for i in range(300)]
+            + [MOOSMsg.notification("NAV_X", "s" * (i % 3), time=1.0, source="sim") for i in range(5)]
+            + [MOOSMsg.notification(k, 1.0, time=1.0, source="sim") for k in ["A", "A", "B", "B"] * 20])
+    runs = codec.scan_packet(codec.encode_packet(msgs))
+    assert [r.count for r in runs[:4]] == [300, 5, 2, 2] and len(runs) == 42
+    assert isinstance(runs[0].bounds, range)
+
+
+@pytest.mark.parametrize("where", [5, 150, 299])
+def test_scan_packet_fast_path_still_checks_lengths(where):
+    same = [MOOSMsg.notification("X", "abc", time=1.0, source="p") for _ in range(300)]
+    size = len(codec.encode_message(same[0]))
     packet = bytearray(codec.encode_packet(same))
-    packet[-7] = 9                                # the last message's sval length: 3 -> 9
+    packet[9 + (where + 1) * size - 7] = 9       # that message's sval length: 3 -> 9
     with pytest.raises(codec.CodecError):
         codec.scan_packet(bytes(packet))
