@@ -6,6 +6,7 @@ subcommands are simulate, train, evaluate, forecast and push.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -73,8 +74,12 @@ def forecast_main(argv) -> int:
     if undated:
         parser.error(f"no observation time in {', '.join(undated)} (a 'time' property or a date in the name)")
     forecaster = operational.Forecaster(args.weights, args.model)
-    for f in forecaster.forecast([o.geometry for o in observations], [o.time for o in observations]):
-        sys.stdout.write(f.line().decode())
+    try:
+        for f in forecaster.forecast([o.geometry for o in observations], [o.time for o in observations]):
+            sys.stdout.write(f.line().decode())
+        sys.stdout.flush()
+    except BrokenPipeError:           # `forecast ... | head -1`: the reader has all it wanted
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 
