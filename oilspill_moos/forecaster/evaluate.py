@@ -360,13 +360,15 @@ def methods_in_order(evaluation: Evaluation) -> list[str]:
 
 
 def headline_table(ev: Evaluation) -> list[str]:
-    lines = ["| Method | " + " | ".join(METRIC_LABELS[m] for m in METRICS) + " | Latency (ms) | Parameters |",
-             "|---" * (len(METRICS) + 3) + "|"]
+    lines = ["| Method | " + " | ".join(METRIC_LABELS[m] for m in METRICS) +
+             " | Latency (ms) | Parameters | Memory (KB): weights + allocated per forecast |",
+             "|---" * (len(METRICS) + 4) + "|"]
     for name in methods_in_order(ev):
         cost = ev.methods[name].cost
         cells = [_fmt(ev.summary(m, name)) for m in METRICS]
+        memory = (f"{cost['params_kb']:,.0f} + {cost['allocated_kb']:,.0f}" if "params_kb" in cost else "–")
         lines.append(f"| {name} | " + " | ".join(cells) +
-                     f" | {cost.get('latency_ms', math.nan):.2f} | {cost.get('n_params', 0):,} |")
+                     f" | {cost.get('latency_ms', math.nan):.2f} | {cost.get('n_params', 0):,} | {memory} |")
     return lines
 
 
