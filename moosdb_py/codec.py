@@ -84,12 +84,7 @@ class WireRun(NamedTuple):
         return len(self.bounds) - 1
 
 
-def _string_at(buf: bytes, p: int, limit: int, name: str, pos: int) -> tuple[int, int]:
-    """Start and length of the string field whose length prefix is at `p`."""
-    (n,) = _INT.unpack_from(buf, p)
-    if n < 0 or p + 4 + n > limit:
-        raise CodecError(f"{name} length {n} runs past the message at byte {pos}")
-    return p + 4, n
+_STRING_FIELDS = ("source", "source aux", "community", "key")
 
 
 def _layout(buf: bytes, pos: int) -> tuple:
@@ -111,11 +106,16 @@ def _layout(buf: bytes, pos: int) -> tuple:
     if data_type not in WIRE_DATA_TYPES:
         raise CodecError(f"unknown data type {data_type!r} at byte {pos}")
     limit = end - 28          # the three doubles and the sval length follow the strings
-    s0, n0 = _string_at(buf, pos + 10, limit, "source", pos)
-    s1, n1 = _string_at(buf, s0 + n0, limit, "source aux", pos)
-    s2, n2 = _string_at(buf, s1 + n1, limit, "community", pos)
-    s3, n3 = _string_at(buf, s2 + n2, limit, "key", pos)
-    p = s3 + n3
+    e = pos + 10
+    found = []
+    for name in _STRING_FIELDS:
+        (n,) = _INT.unpack_from(buf, e)
+        e += 4 + n
+        if n < 0 or e > limit:
+            raise CodecError(f"{name} length {n} runs past the message at byte {pos}")
+        found += (e - n, n)
+    s0, n0, s1, n1, s2, n2, s3, n3 = found
+    p = e
     (n,) = _INT.unpack_from(buf, p + 24)
     if n < 0 or p + 28 + n != end:
         raise CodecError(f"message at byte {pos}: length field {length} disagrees with its fields "
@@ -123,11 +123,14 @@ def _layout(buf: bytes, pos: int) -> tuple:
     return end, msg_id, msg_type, data_type, s0, n0, s1, n1, s2, n2, s3, n3, p
 
 
+_new_tuple = tuple.__new__     # builds a WireRun without namedtuple's Python-level __new__ (hot path)
+
+
 def scan_message(buf: bytes, pos: int = 0) -> WireRun:
     """Check the message at `pos` and pick out type, source and key (the DB's notify fast path)."""
     end, _, msg_type, data_type, s0, n0, _, _, s2, n2, s3, n3, p = _layout(buf, pos)
-    return WireRun(msg_type, data_type, buf[s0:s0 + n0].decode("latin-1"), buf[s3:s3 + n3].decode("latin-1"),
-                   n2, s2 - 4 - pos, p - pos, (pos, end))
+    return _new_tuple(WireRun, (msg_type, data_type, buf[s0:s0 + n0].decode("latin-1"),
+                                buf[s3:s3 + n3].decode("latin-1"), n2, s2 - 4 - pos, p - pos, (pos, end)))
 
 
 def decode_message(buf: bytes, pos: int = 0) -> tuple[MOOSMsg, int]:
@@ -164,6 +167,10 @@ def run_bytes(buf: bytes, run: WireRun, community_field: bytes) -> bytes:
     if run.community_len:
         return buf[start:bounds[-1]]
     at, key_end = run.community_rel, run.key_end
+    if len(bounds) == 2:
+        end = bounds[1]
+        return _INT.pack(end - start + len(community_field) - 4) + buf[start + 4:start + at] + community_field \
+            + buf[start + at + 4:end]
     head = buf[start + 8:start + at] + community_field + buf[start + at + 4:start + key_end]
     grow = len(community_field) - 4
     pack = _INT.pack
@@ -242,10 +249,14 @@ def scan_packet(packet: bytes) -> list[WireRun]:
     pos = PACKET_HEADER_SIZE
     left = count
     while left:
-        run = _extend(packet, scan_message(packet, pos), left - 1)
+        run = scan_message(packet, pos)
+        left -= 1
+        start, pos = run.bounds
+        if left and packet.startswith(packet[start + 8:start + run.key_end], pos + 8):
+            run = _extend(packet, run, left)
+            left -= len(run.bounds) - 2
+            pos = run.bounds[-1]
         runs.append(run)
-        left -= run.count
-        pos = run.end
     _check_end(packet, pos, count)
     return runs
 
@@ -255,8 +266,6 @@ def _extend(packet: bytes, run: WireRun, left: int) -> WireRun:
     start, end = run.bounds
     key_end = run.key_end
     prefix = packet[start + 8:start + key_end]
-    if not left or not packet.startswith(prefix, end + 8):
-        return run
     size = end - start
     rows = 1 + _same_rows(packet, start, size, key_end, min(left, (len(packet) - end) // size))
     bounds = range(start, start + rows * size + 1, size) if rows > 1 else [start, end]

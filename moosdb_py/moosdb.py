@@ -410,9 +410,13 @@ class MOOSDB:
             log.info("rejected write of %s by %s: %s is of type %s, not %s", key, run.source, key, var.data_type,
                      data_type)
             return
-        bounds, count = run.bounds, run.count
-        grow = (len(chunk) - bounds[-1] + bounds[0]) // count      # the community filled in, per message
-        var.wire = chunk[len(chunk) - (bounds[-1] - bounds[-2] + grow):] if count > 1 else chunk
+        bounds = run.bounds
+        count = len(bounds) - 1
+        first = last = chunk
+        if count > 1:
+            grow = (len(chunk) - bounds[-1] + bounds[0]) // count      # the community filled in, per message
+            first, last = chunk[:bounds[1] - bounds[0] + grow], chunk[len(chunk) - (bounds[-1] - bounds[-2] + grow):]
+        var.wire = last
         var.source = run.source
         var.written_time = now
         var.window_writes += count
@@ -421,7 +425,7 @@ class MOOSDB:
                 conn.queue(chunk, count)
             elif now - sub[1] >= sub[0]:
                 sub[1] = now
-                conn.queue(chunk[:bounds[1] - bounds[0] + grow] if count > 1 else chunk, 1)
+                conn.queue(first, 1)
 
     def post(self, key: str, value: float | str) -> None:
         """A notify by the DB itself (its DB_* variables)."""
