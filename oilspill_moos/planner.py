@@ -39,7 +39,10 @@ def containment_region(boundary, standoff: float, simplify: float = 0.5) -> Poly
     if not np.isfinite(standoff) or standoff < 0:
         raise PlanError(f"stand-off distance {standoff!r} must be a finite number >= 0")
     parts = _polygon_parts(boundary)
-    grown = shapely.union_all([shapely.buffer(Polygon(p.exterior), standoff, quad_segs=4) for p in parts])
+    # GEOS buffers a polygon by a vanishing distance (1e-163, found by hypothesis) to an empty one:
+    # below a micrometre there is nothing to grow.
+    distance = standoff if standoff >= 1e-6 else 0.0
+    grown = shapely.union_all([shapely.buffer(Polygon(p.exterior), distance, quad_segs=4) for p in parts])
     if isinstance(grown, MultiPolygon):
         grown = grown.convex_hull
     region = Polygon(grown.exterior)

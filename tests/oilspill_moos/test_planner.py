@@ -4,7 +4,7 @@ import itertools
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import MultiPolygon, Polygon
 
@@ -43,6 +43,8 @@ def brute_force_bottleneck(cost):
 
 @settings(max_examples=40, deadline=None)
 @given(spill_polygons(), st.floats(0, 300), fleets)
+@example([(332.0, 0.0), (257.0, 43.30127018922194), (257.0, -43.30127018922192)], 3.33334497432315e-163,
+         {"abe": (0.0, 0.0)})   # GEOS buffered this to an empty polygon
 def test_start_points_lie_on_the_standoff_perimeter(vertices, standoff, positions):
     spill = Polygon(vertices)
     region = containment_region(vertices, standoff)
