@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from .app import print_page
 from .client import MOOSClient
-from .message import SERVER_REQUEST_ID, MOOSMsg, moos_time
+from .message import SERVER_REQUEST_ID, MOOSMsg
 from .mission import Mission, read_mission
 from .moosdb import wild_match
 from .source import MissionFileError
@@ -134,7 +134,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--serverport", "--port", "--moos_port", dest="port", type=int,
                    help="MOOSDB port (default: mission or 9000)")
     p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
-                   help="the community's time warp, for the (T)ime column (default: mission or 1)")
+                   help="our time warp (default: mission or 1); (T)ime counts on the DB's clock whatever it is")
     p.add_argument("--alias", default="uXMS", help="MOOS name of this client (default uXMS)")
     p.add_argument("--example", action="store_true", help="print an example uXMS config block")
     p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
@@ -208,7 +208,7 @@ def options_from(args: argparse.Namespace) -> Options:
 
 async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
     out = out or sys.stdout
-    scope = Scope(opts.names, opts.sources, start=moos_time(opts.time_warp))
+    scope = Scope(opts.names, opts.sources)
     changed = asyncio.Event()
     answered = asyncio.Event()   # the DB answered our ALL request, so it has answered the registrations
 
@@ -233,6 +233,8 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
                 changed.set()
 
     def on_connect() -> None:
+        if not scope.start:   # (T)ime counts from our start on the DB's clock (see uPokeDB), whatever our warp
+            scope.start = client.moos_time() + client.db_skew
         for name in opts.names:
             if is_pattern(name):
                 client.register_wildcard(name, "*")

@@ -188,6 +188,11 @@ def test_options_after_the_mission_file_and_pokes_on_the_dbs_clock(tmp_path):
         deploy, now = asyncio.run(deploy_and_community_clock())
         # stamped with uPokeDB's own warp-1 clock it would be 9 x the epoch (~15e9 s) behind
         assert (deploy.string, deploy.source) == ("true", "uPokeDB") and abs(deploy.time - now) < 60
+        # uXMS on the same file counts (T)ime on the DB's clock too: the poke was a few warped seconds ago
+        shown = tool("xms", mission, "--port", db.port, "DEPLOY", "--once", "--show=time")
+        assert shown.returncode == 0, shown.stderr
+        age = float(shown.stdout.splitlines()[2].split()[1])
+        assert -120 < age <= 1, shown.stdout
     finally:
         db.stop()
 
