@@ -199,8 +199,8 @@ def pack_packet(chunks: Iterable[bytes], count: int | None = None) -> bytes:
     """A packet of already-encoded messages (how the DB forwards mail untouched); `count` is the number
     of messages when a chunk holds several back to back."""
     chunks = chunks if isinstance(chunks, list) else list(chunks)
-    body = b"".join(chunks)
-    return _PKT_HEAD.pack(PACKET_HEADER_SIZE + len(body), len(chunks) if count is None else count, 0) + body
+    size = PACKET_HEADER_SIZE + sum(map(len, chunks))
+    return b"".join([_PKT_HEAD.pack(size, len(chunks) if count is None else count, 0), *chunks])
 
 
 def encode_packet(msgs: Iterable[MOOSMsg]) -> bytes:
@@ -338,10 +338,16 @@ class StreamFramer:
         return len(self._buf) - self._pos
 
     def feed(self, data: bytes) -> None:
-        if self._pos:
-            del self._buf[:self._pos]
-            self._pos = 0
-        self._buf += data
+        buf, pos = self._buf, self._pos
+        if pos == len(buf) and type(data) is bytes:     # nothing pending: frame the chunk itself, no copy
+            self._buf, self._pos = data, 0
+            return
+        if type(buf) is not bytearray:
+            buf = bytearray(memoryview(buf)[pos:])
+        elif pos:
+            del buf[:pos]
+        buf += data
+        self._buf, self._pos = buf, 0
 
     def next_unit(self) -> bytes | None:
         buf, pos = self._buf, self._pos
@@ -351,7 +357,7 @@ class StreamFramer:
                 return None
             self._need_slot = False
             self._pos = pos + PROTOCOL_SLOT_SIZE
-            return bytes(buf[pos:self._pos])
+            return bytes(memoryview(buf)[pos:self._pos])
         if avail < 4:
             return None
         (total,) = _INT.unpack_from(buf, pos)
@@ -359,8 +365,8 @@ class StreamFramer:
             raise FramingError(f"packet length {total} outside [{PACKET_HEADER_SIZE}, {self.max_packet}]")
         if avail < total:
             return None
-        self._pos = pos + total
-        return bytes(buf[pos:self._pos])
+        self._pos = end = pos + total
+        return buf[pos:end] if type(buf) is bytes else bytes(memoryview(buf)[pos:end])
 
     def units(self, data: bytes) -> list[bytes]:
         """Feed `data` and return every unit it completes."""
