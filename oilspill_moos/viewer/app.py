@@ -96,9 +96,10 @@ def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mo
 
 class MarineViewer(MOOSApp):
     """pMarineViewer: a web operations map of the shoreside community. Vehicles (NODE_REPORT) with
-    heading and trails, the spill boundary in force, each vehicle's start point and containment
-    loop, the vessels' oil observations, VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT markers, the phase of every vehicle and the
-    pPathAssign status line, served on http://127.0.0.1:<http_port>/ and pushed over a WebSocket.
+    heading and trails, the spill boundary in force, the forecast boundaries per horizon with their
+    uncertainty bands, each vehicle's start point and containment loop, the vessels' oil
+    observations, VIEW_POLYGON / VIEW_SEGLIST / VIEW_POINT markers, the phase of every vehicle and
+    the pPathAssign status line, served on http://127.0.0.1:<http_port>/ and pushed over a WebSocket.
     Buttons poke the MOOSDB (stamped with the community's warped time), RETURN_ALL recalls the
     fleet and RE-PUSH BOUNDARY sends the boundary in force to pPathAssign again.
 
@@ -138,6 +139,8 @@ SUBSCRIPTIONS:
   NODE_REPORT                    vehicles: NAME, X, Y (or LAT/LON), HDG, SPD, MODE, COLOR, ...
   VIEW_POLYGON, VIEW_SEGLIST, VIEW_POINT   markers (MOOS-IvP formats; active=false erases by label)
   OILSPILL_BOUNDARY              the boundary in force (pPathAssign)
+  OILSPILL_FORECAST              each horizon of the latest forecast with its uncertainty band (pPathAssign);
+                                 a new cycle= replaces the horizons shown
   OILSPILL_PHASE, OILSPILL_PHASE_<V>       fleet phase and the phase asked of each vehicle
   STARTING_POSITION_UPDATES_<V>  each vehicle's assigned start point
   OIL_PATH_UPDATES_<V>           each vehicle's containment loop

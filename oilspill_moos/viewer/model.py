@@ -12,6 +12,9 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+import numpy as np
+import shapely
+
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
 from oilspill_moos.app_config import parse_float, parse_pairs
 from oilspill_moos.oil_fusion import parse_observation
@@ -20,8 +23,8 @@ VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT"
 # Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).
 NOTE_KEYS = {"OILSPILL_WARNING": "warning", "OILSPILL_DROPPED": "dropped", "OILSPILL_REJOINED": "rejoined",
              "OIL_FUSION_WARNING": "warning"}
-SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_STATUS", *NOTE_KEYS,
-                 "OIL_OBSERVATION", "OIL_OBSERVED_EDGE", "OIL_FUSION_SKILL")
+SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_FORECAST", "OILSPILL_STATUS",
+                 *NOTE_KEYS, "OIL_OBSERVATION", "OIL_OBSERVED_EDGE", "OIL_FUSION_SKILL")
 WILDCARDS = ("OILSPILL_PHASE*", "STARTING_POSITION_UPDATES_*", "OIL_PATH_UPDATES_*")
 
 
@@ -141,6 +144,57 @@ def parse_view(key: str, text: str) -> Marker:
                   tuple(sorted(props.items())))
 
 
+@dataclass(frozen=True)
+class Forecast:
+    """One horizon of a forecast (pPathAssign's OILSPILL_FORECAST) and its uncertainty band:
+    the ground within `uncertainty_m` of the outline, i.e. the outline buffered out minus it
+    buffered in, as rings to fill even-odd."""
+
+    cycle: int
+    horizon_h: float
+    points: tuple[tuple[float, float], ...]
+    uncertainty_m: float = 0.0
+    valid: float | None = None
+    source: str = ""
+    band: tuple[tuple[tuple[float, float], ...], ...] = ()
+
+    def as_update(self) -> dict:
+        return {"cycle": self.cycle, "horizon": self.horizon_h, "valid": self.valid, "uncertainty": self.uncertainty_m,
+                "source": self.source, "points": [list(p) for p in self.points],
+                "band": [[list(p) for p in ring] for ring in self.band]}
+
+
+def uncertainty_band(points, width: float) -> tuple:
+    """Rings (outer and holes, decimetres) of the ground within `width` of the closed outline."""
+    if width <= 0:
+        return ()
+    ring = shapely.LinearRing(points)
+    band = shapely.buffer(ring, width, quad_segs=4)
+    return tuple(tuple(map(tuple, np.round(shapely.get_coordinates(r), 1).tolist()))
+                 for r in shapely.get_rings(shapely.get_parts(band)))
+
+
+def parse_forecast(text: str) -> Forecast:
+    """`cycle=2,horizon=7,valid=<utc>,uncertainty=120,source=ltc-rk4,pts={x,y:...}` (pPathAssign)."""
+    props = _properties(text)
+    where = f"OILSPILL_FORECAST {text[:80]!r}"
+    if "cycle" not in props or "horizon" not in props or "pts={" not in text.replace(" ", "").lower():
+        raise ViewError(f"{where}: needs cycle=, horizon= and pts={{..}}")
+    try:
+        cycle = parse_float(props["cycle"], "cycle", lo=0)
+        horizon = parse_float(props["horizon"], "horizon")
+        uncertainty = parse_float(props.get("uncertainty", "0"), "uncertainty", lo=0)
+        valid = parse_float(props["valid"], "valid") if "valid" in props else None
+        points = parse_seglist(text)
+    except (ValueError, GeometryError) as exc:
+        raise ViewError(f"{where}: {exc}") from None
+    if len(points) < 3 or not cycle.is_integer():
+        raise ViewError(f"{where}: needs a whole cycle number and 3 points at least")
+    return Forecast(cycle=int(cycle), horizon_h=horizon, points=tuple(map(tuple, points.tolist())),
+                    uncertainty_m=uncertainty, valid=valid, source=props.get("source", ""),
+                    band=uncertainty_band(points, uncertainty))
+
+
 def _points_update(text: str, what: str) -> list[list[float]]:
     """`points=x,y:x,y[#repeat=forever#...]` (pPathAssign's STARTING_POSITION / OIL_PATH updates)."""
     body = text.split("#")[0].strip()
@@ -243,6 +297,7 @@ class Scene:
     markers: dict[tuple[str, str], Marker] = field(default_factory=dict)
     boundary: list[list[float]] | None = None
     boundary_text: str = ""
+    forecasts: dict[float, Forecast] = field(default_factory=dict)   # by horizon, all of one cycle
     starts: dict[str, list[float]] = field(default_factory=dict)
     loops: dict[str, list[list[float]]] = field(default_factory=dict)
     phase: str = ""
@@ -272,6 +327,12 @@ class Scene:
                 raise ViewError(f"OILSPILL_BOUNDARY {text!r}: {exc}") from None
             self.boundary_text = text
             return [{"t": "boundary", "points": self.boundary, "label": _properties(text).get("label", "")}]
+        if key == "OILSPILL_FORECAST":
+            forecast = parse_forecast(text)
+            if any(f.cycle != forecast.cycle for f in self.forecasts.values()):
+                self.forecasts = {}   # a new forecast: the horizons of the last one are stale
+            self.forecasts[forecast.horizon_h] = forecast
+            return [{"t": "forecasts", "forecasts": self._forecast_updates()}]
         if key == "OILSPILL_PHASE":
             self.phase = text
             return [{"t": "phase", "phase": text}]
@@ -326,11 +387,15 @@ class Scene:
         vehicle.trail.append((report.x, report.y))
         return vehicle.as_update()
 
+    def _forecast_updates(self) -> list[dict]:
+        return [self.forecasts[h].as_update() for h in sorted(self.forecasts)]
+
     def snapshot(self) -> dict:
         """Everything a page needs to draw the picture from scratch."""
         return {"vehicles": [{**v.as_update(), "trail": [list(p) for p in v.trail]} for v in self.vehicles.values()],
                 "markers": [m.as_update() for m in self.markers.values()],
-                "boundary": self.boundary, "starts": self.starts, "loops": self.loops, "phase": self.phase,
+                "boundary": self.boundary, "forecasts": self._forecast_updates(), "starts": self.starts,
+                "loops": self.loops, "phase": self.phase,
                 "commanded": self.commanded, "status": self.status, "notes": list(self.notes),
                 "observations": list(self.observations), "observed_edge": self.observed_edge, "skill": self.skill,
                 "trail_length": self.trail_length}

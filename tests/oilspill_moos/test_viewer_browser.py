@@ -1,7 +1,8 @@
 """pMarineViewer end to end, as an operator uses it: a real headless Chromium loads the page of a
 running oil-spill mission (2 vehicles, time warp), watches the vehicles appear, clicks DEPLOY and
-sees their phase change, sees them move to the boundary pushed to pPathAssign, re-pushes it and
-calls the fleet back with RETURN_ALL, then replays the shoreside alog with the time slider. Screenshots are kept in artifacts/ (git-ignored).
+sees their phase change, sees them move to the forecast pushed to pPathAssign (two horizons, each
+in the legend with its uncertainty band), re-pushes the boundary (a new cycle replacing the
+horizons) and calls the fleet back with RETURN_ALL, then replays the shoreside alog with the time slider. Screenshots are kept in artifacts/ (git-ignored).
 """
 import asyncio
 import contextlib
@@ -14,7 +15,7 @@ import pytest
 
 from helpers import wait_until
 from oilspill_moos.demo import OilspillMission, free_port
-from oilspill_moos.forecaster.push import push_lines
+from oilspill_moos.forecaster.push import boundary_line, push_lines
 from oilspill_moos.viewer.app import viewer_beside
 from oilspill_moos.viewer.browser import Browser, find_chromium
 
@@ -24,7 +25,11 @@ pytestmark = pytest.mark.skipif(find_chromium() is None, reason="no chromium on 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
 WARP = 10.0
 TIMEOUT = 45.0   # wall seconds for any one step (generous: CI shares two cores)
-SPILL = b"pts={-30,80:30,80:30,140:-30,140},label=viewer-test-spill\n"
+ISSUED = time.time()
+FORECAST = [boundary_line(polygon, horizon, time=ISSUED + 3600 * horizon, crs="local", uncertainty_m=band)
+            for horizon, band, polygon in ((3, 6, [(-30, 80), (30, 80), (30, 140), (-30, 140)]),
+                                           (7, 12, [(-10, 110), (60, 110), (60, 180), (-10, 180)]))]
+LEGEND = "[...document.querySelectorAll('#forecast-legend li')].map(li => li.querySelector('.horizon').textContent)"
 
 
 @contextlib.contextmanager
@@ -103,8 +108,11 @@ def test_operator_sees_the_fleet_deploys_it_and_watches_it_move(live, browser):
                 assert time.monotonic() < deadline, f"DEPLOY did not take: {await browser.evaluate(PHASES)}"
         log = await browser.evaluate("document.getElementById('log').textContent")
         assert "DEPLOY: DEPLOY_ALL=true" in log
-        assert await asyncio.to_thread(push_lines, [SPILL], port=mission.boundary_port) == [1]
+        assert await asyncio.to_thread(push_lines, FORECAST, port=mission.boundary_port) == [1, 2]
         await until(browser, "viewerState.boundary && viewerState.boundary.length === 4", what="the boundary")
+        await until(browser, f"{LEGEND}.join() === '+3 h,+7 h'", what="both horizons in the forecast legend")
+        bands = await browser.evaluate("viewerState.forecasts.map(f => [f.uncertainty, f.band.length])")
+        assert bands == [[6, 2], [12, 2]], bands   # each square's band: the outer ring and the hole
         await until(browser, "Object.keys(viewerState.starts).length === 2", what="both start points")
         moved = (f"(() => {{ const a = {json.dumps(first)}; return Object.entries({POSITIONS})"
                  ".some(([n, p]) => Math.hypot(p[0] - a[n][0], p[1] - a[n][1]) > 10); })()")
@@ -126,7 +134,8 @@ def test_operator_sees_the_fleet_deploys_it_and_watches_it_move(live, browser):
         await until(browser, "document.getElementById('log').textContent.includes('RE-PUSH')",
                     what="pPathAssign's answer to RE-PUSH BOUNDARY in the log")
         log = await browser.evaluate("document.getElementById('log').textContent")
-        assert "accepted it as boundary 2" in log, log
+        assert "accepted it as boundary 3" in log, log
+        await until(browser, f"{LEGEND}.join() === '+0 h'", what="the re-pushed boundary's cycle replacing both horizons")
         await browser.click("#buttons button[data-label='RETURN_ALL']")
         await until(browser, f"{PHASES}.every(p => p === 'RETURNING')", what="the fleet returning")
         assert not [line for line in browser.console if line.startswith("exception")], browser.console
@@ -147,7 +156,8 @@ def test_finished_run_replays_with_the_time_slider(live, browser):
             await browser.evaluate("(() => { const s = document.getElementById('slider'); s.value = s.max;"
                                    " s.dispatchEvent(new Event('change')); })()")
             await until(browser, f"{PHASES}.length === 2", what="vehicles at the end of the log")
-            await until(browser, "viewerState.boundary !== null", what="the boundary in the replay")
+            await until(browser, "viewerState.boundary !== null && viewerState.forecasts.length > 0",
+                        what="the boundary and the forecast in the replay")
             shown = await browser.evaluate("document.getElementById('replay-time').textContent")
             assert shown.startswith(f"{end:.1f} /"), shown
             await browser.screenshot(ARTIFACTS / "viewer_replay.png")

@@ -4,6 +4,7 @@ import json
 import math
 
 import pytest
+import shapely
 import websockets
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -12,6 +13,7 @@ from moosdb_py.alog import alog_header, format_alog_line
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.path_assign import Boundary, format_forecast
 from oilspill_moos.viewer.app import MarineViewer, Replay, page_setup, read_settings, serve_replay
 from oilspill_moos.viewer.model import (
     Button,
@@ -20,6 +22,7 @@ from oilspill_moos.viewer.model import (
     merge_button,
     parse_action,
     parse_button,
+    parse_forecast,
     parse_node_report,
     parse_view,
 )
@@ -103,6 +106,62 @@ def test_view_seglist_round_trip(points, label):
     text = "pts={" + ":".join(f"{x},{y}" for x, y in points) + f"}},label={label}"
     marker = parse_view("VIEW_SEGLIST", text)
     assert marker.points == tuple((float(x), float(y)) for x, y in points) and marker.label == label
+
+
+decimetres = st.floats(-5e4, 5e4).map(lambda v: round(v, 1))
+
+
+@settings(max_examples=40, deadline=None)
+@given(points=st.lists(st.tuples(decimetres, decimetres), min_size=3, max_size=40),
+       cycle=st.integers(1, 10**6), horizon=st.floats(0, 240).map(lambda v: round(v, 3)),
+       valid=st.none() | st.floats(0, 4e9).map(lambda v: round(v, 3)),
+       uncertainty=st.floats(0, 5000).map(lambda v: round(v, 3)),
+       source=st.from_regex(r"[a-z][a-z0-9_.-]{0,12}", fullmatch=True))
+def test_forecast_round_trip_from_path_assign(points, cycle, horizon, valid, uncertainty, source):
+    text = format_forecast(Boundary(tuple(points), time=valid, horizon_h=horizon, uncertainty_m=uncertainty,
+                                    source=source), cycle)
+    forecast = parse_forecast(text)
+    assert (forecast.cycle, forecast.horizon_h, forecast.valid, forecast.uncertainty_m, forecast.source) == (
+        cycle, horizon, valid, uncertainty, source)
+    assert forecast.points == tuple(points)
+    assert bool(forecast.band) == (uncertainty > 0)
+
+
+def test_forecast_band_is_the_outline_buffered_out_and_in():
+    forecast = parse_forecast("cycle=3,horizon=7,valid=1272092400,uncertainty=100,source=ltc-rk4,"
+                              "pts={0,0:1000,0:1000,1000:0,1000}")
+    outer, hole = (shapely.LinearRing(ring) for ring in forecast.band)
+    assert outer.bounds == pytest.approx((-100, -100, 1100, 1100), abs=0.1)
+    assert hole.bounds == pytest.approx((100, 100, 900, 900), abs=0.1)
+    assert parse_forecast("cycle=1,horizon=3,pts={0,0:10,0:0,10}").band == ()   # no uncertainty, no band
+
+
+@pytest.mark.parametrize("text, says", [("horizon=3,pts={0,0:1,0:0,1}", "needs cycle="),
+                                         ("cycle=1,horizon=3", "needs cycle="),
+                                         ("cycle=1,horizon=soon,pts={0,0:1,0:0,1}", "horizon: expected a number"),
+                                         ("cycle=1,horizon=3,uncertainty=-5,pts={0,0:1,0:0,1}", "uncertainty"),
+                                         ("cycle=1,horizon=3,pts={0,0:1,0}", "3 points at least")])
+def test_bad_forecasts_are_refused_with_the_string(text, says):
+    with pytest.raises(ViewError, match=f"OILSPILL_FORECAST .*{says}"):
+        parse_forecast(text)
+
+
+def test_scene_keeps_the_horizons_of_the_latest_forecast_cycle():
+    scene = Scene()
+    square = "pts={0,0:100,0:100,100:0,100}"
+    for horizon in (7, 3, 15):
+        [update] = scene.apply("OILSPILL_FORECAST", f"cycle=1,horizon={horizon},uncertainty=20,{square}", 1.0)
+    assert [f["horizon"] for f in update["forecasts"]] == [3, 7, 15] and update["t"] == "forecasts"
+    [update] = scene.apply("OILSPILL_FORECAST", f"cycle=1,horizon=7,uncertainty=50,{square}", 2.0)
+    assert [(f["horizon"], f["uncertainty"]) for f in update["forecasts"]] == [(3, 20), (7, 50), (15, 20)]
+    with pytest.raises(ViewError):
+        scene.apply("OILSPILL_FORECAST", "cycle=2,horizon=3,pts={0,0}", 3.0)
+    assert len(scene.forecasts) == 3   # a bad one leaves the picture alone
+    [update] = scene.apply("OILSPILL_FORECAST", f"cycle=2,horizon=3,source=ltc-rk4,{square}", 4.0)
+    assert [(f["cycle"], f["horizon"], f["source"]) for f in update["forecasts"]] == [(2, 3, "ltc-rk4")]
+    snap = scene.snapshot()
+    json.dumps(snap)
+    assert snap["forecasts"] == update["forecasts"]
 
 
 def test_buttons_configured_as_in_pmarineviewer():

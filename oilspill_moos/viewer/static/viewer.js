@@ -4,9 +4,14 @@
 
 const STALE_SECONDS = 10;          // MOOS seconds without a NODE_REPORT before a vehicle is greyed
 const PALETTE = ["#ffd23f", "#ff6b6b", "#4ecdc4", "#c77dff", "#ff9f1c", "#9ef01a", "#48bfe3", "#f15bb5"];
+// Forecast horizons, nearest first: colour and dash both differ, so they stay apart in grey too.
+const FORECAST_STYLES = [
+  { color: "#ff5fa2", dash: [] }, { color: "#b388ff", dash: [10, 5] }, { color: "#5ab4ff", dash: [4, 4] },
+  { color: "#4de0c8", dash: [12, 4, 2, 4] }, { color: "#d4e157", dash: [2, 4] },
+];
 
 const state = {
-  setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, starts: {}, loops: {},
+  setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, forecasts: [], starts: {}, loops: {},
   phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
   observations: [], observedEdge: [], skill: "",
 };
@@ -59,13 +64,14 @@ function loadSnapshot(msg) {
   state.trailLength = msg.trail_length;
   for (const v of msg.vehicles) state.vehicles.set(v.name.toLowerCase(), { ...v, trail: v.trail });
   for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
-  Object.assign(state, { boundary: msg.boundary, starts: msg.starts, loops: msg.loops, phase: msg.phase,
+  Object.assign(state, { boundary: msg.boundary, forecasts: msg.forecasts, starts: msg.starts, loops: msg.loops, phase: msg.phase,
     commanded: msg.commanded, status: msg.status, time: msg.time, observations: msg.observations,
     observedEdge: msg.observed_edge, skill: msg.skill });
   if (first) { buildControls(); setLink(true); }
   document.getElementById("log").replaceChildren();
   for (const note of msg.notes) addNote(note);
   setReplay(msg.replay || null);
+  refreshForecasts();
   refreshPanel();
   if (!view.userMoved) fit();
 }
@@ -98,6 +104,7 @@ function apply(u) {
       else state.markers.delete(u.kind + "/" + u.label);
       break;
     case "boundary": state.boundary = u.points; break;
+    case "forecasts": state.forecasts = u.forecasts; refreshForecasts(); break;
     case "phase": state.phase = u.phase; break;
     case "commanded": state.commanded[u.name] = u.phase; break;
     case "start": state.starts[u.name] = u.point; break;
@@ -181,6 +188,31 @@ function refreshPanel() {
   });
   body.replaceChildren(...rows);
 }
+
+// The legend: one row per horizon of the forecast shown, in the style it is drawn with.
+function refreshForecasts() {
+  const rows = state.forecasts.map((f, i) => {
+    const style = FORECAST_STYLES[i % FORECAST_STYLES.length];
+    const li = document.createElement("li");
+    li.dataset.horizon = String(f.horizon);
+    const svg = `<svg width="26" height="12" aria-hidden="true"><rect x="0" y="1" width="26" height="10" ` +
+      `fill="${style.color}" fill-opacity="${f.band.length ? 0.22 : 0}"/><line x1="0" y1="6" x2="26" y2="6" ` +
+      `stroke="${style.color}" stroke-width="2" stroke-dasharray="${style.dash.join(" ")}"/></svg>`;
+    li.innerHTML = svg + `<b class="horizon"></b><span class="band"></span><span class="valid"></span>`;
+    li.querySelector(".horizon").textContent = horizonText(f.horizon);
+    li.querySelector(".band").textContent = f.uncertainty > 0 ? "±" + distanceText(f.uncertainty) : "no band";
+    li.querySelector(".valid").textContent = f.valid === null ? f.source : `${utcText(f.valid)} ${f.source}`;
+    li.title = `cycle ${f.cycle}, ${f.source}` + (f.valid === null ? "" : `, valid ${new Date(f.valid * 1000).toISOString()}`);
+    return li;
+  });
+  document.getElementById("forecast-legend").replaceChildren(...rows);
+  document.getElementById("forecast-section").hidden = rows.length === 0;
+  dirty = true;
+}
+
+function horizonText(h) { return `+${Number(h.toFixed(2))} h`; }
+function distanceText(m) { return m >= 1000 ? `${Number((m / 1000).toFixed(1))} km` : `${Math.round(m)} m`; }
+function utcText(t) { return new Date(t * 1000).toISOString().slice(5, 16).replace("T", " ") + "Z"; }
 
 // Times are shown as mission time: seconds of (warped) MOOS time since the viewer started,
 // or since the start of the log in a replay, as pMarineViewer's clock counts.
@@ -293,6 +325,29 @@ function drawBoundary() {
   ctx.fillText("spill boundary", lx + 4, ly - 4);
 }
 
+// Far horizons first so the near ones, the ones the fleet is likeliest to meet, lie on top: the
+// band (every ring of it, filled even-odd so the inner buffer stays clear), then the outline.
+function drawForecasts() {
+  for (let i = state.forecasts.length - 1; i >= 0; i--) {
+    const f = state.forecasts[i], style = FORECAST_STYLES[i % FORECAST_STYLES.length];
+    if (f.band.length) {
+      ctx.beginPath();
+      for (const ring of f.band) {
+        ring.forEach(([x, y], j) => { const [sx, sy] = toScreen(x, y); if (j) ctx.lineTo(sx, sy); else ctx.moveTo(sx, sy); });
+        ctx.closePath();
+      }
+      ctx.fillStyle = style.color; ctx.globalAlpha = 0.16; ctx.fill("evenodd");
+      ctx.strokeStyle = style.color; ctx.globalAlpha = 0.4; ctx.lineWidth = 0.8; ctx.stroke(); ctx.globalAlpha = 1;
+    }
+    path(f.points, true);
+    ctx.strokeStyle = style.color; ctx.lineWidth = 1.8; ctx.setLineDash(style.dash); ctx.stroke(); ctx.setLineDash([]);
+    const top = f.points.reduce((a, b) => (b[1] > a[1] ? b : a));
+    const [lx, ly] = toScreen(...top);
+    ctx.fillStyle = style.color; ctx.font = "bold 11px system-ui, sans-serif";
+    ctx.fillText(horizonText(f.horizon), lx + 4, ly - 5);
+  }
+}
+
 // Seglists (the helm's waypoint lists) first and faint, so the polygons and points drawn over
 // them stay readable where the fleet shares one loop.
 const MARKER_ORDER = { seglist: 0, polygon: 1, point: 2 };
@@ -393,6 +448,7 @@ function draw() {
   ctx.fillRect(0, 0, canvas.width, canvas.height);
   drawGrid();
   drawBoundary();
+  if (document.getElementById("show-forecasts").checked) drawForecasts();
   const colors = new Map();
   sortedVehicles().forEach((v, i) => colors.set(v.name.toLowerCase(), vehicleColor(v, i)));
   if (document.getElementById("show-markers").checked) drawMarkers();
@@ -416,6 +472,7 @@ function extent() {
   const pts = [];
   for (const v of state.vehicles.values()) pts.push([v.x, v.y]);
   if (state.boundary) pts.push(...state.boundary);
+  for (const f of state.forecasts) pts.push(...f.points);
   for (const p of Object.values(state.starts)) pts.push(p);
   for (const l of Object.values(state.loops)) pts.push(...l);
   return pts;
@@ -467,6 +524,7 @@ canvas.addEventListener("wheel", (e) => {
 document.getElementById("fit").onclick = () => { view.userMoved = false; fit(); };
 document.getElementById("show-trails").onchange = () => { dirty = true; };
 document.getElementById("show-markers").onchange = () => { dirty = true; };
+document.getElementById("show-forecasts").onchange = () => { dirty = true; };
 window.addEventListener("resize", resize);
 
 resize();
