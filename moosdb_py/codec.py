@@ -123,7 +123,7 @@ def _layout(buf: bytes, pos: int) -> tuple:
     return end, msg_id, msg_type, data_type, s0, n0, s1, n1, s2, n2, s3, n3, p
 
 
-_new_tuple = tuple.__new__     # builds a WireRun without namedtuple's Python-level __new__ (hot path)
+_new_tuple = tuple.__new__     # builds a WireRun without namedtuple's Python-level __new__ or _replace (hot path)
 
 
 def scan_message(buf: bytes, pos: int = 0) -> WireRun:
@@ -284,7 +284,7 @@ def _extend(packet: bytes, run: WireRun, left: int) -> WireRun:
         bounds.append(end)
         pos = end
         left -= 1
-    return run._replace(bounds=bounds)
+    return _new_tuple(WireRun, (*run[:-1], bounds))
 
 
 def _same_rows(packet: bytes, start: int, size: int, key_end: int, most: int) -> int:
