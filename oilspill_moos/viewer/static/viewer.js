@@ -202,7 +202,8 @@ function refreshForecasts() {
     li.querySelector(".horizon").textContent = horizonText(f.horizon);
     li.querySelector(".band").textContent = f.uncertainty > 0 ? "±" + distanceText(f.uncertainty) : "no band";
     li.querySelector(".valid").textContent = f.valid === null ? f.source : `${utcText(f.valid)} ${f.source}`;
-    li.title = `cycle ${f.cycle}, ${f.source}` + (f.valid === null ? "" : `, valid ${new Date(f.valid * 1000).toISOString()}`);
+    li.title = `cycle ${f.cycle}, ${f.source}` +
+      (f.valid === null ? "" : `, valid ${new Date(f.valid * 1000).toISOString()}`);
     return li;
   });
   document.getElementById("forecast-legend").replaceChildren(...rows);
@@ -341,11 +342,25 @@ function drawForecasts() {
     }
     path(f.points, true);
     ctx.strokeStyle = style.color; ctx.lineWidth = 1.8; ctx.setLineDash(style.dash); ctx.stroke(); ctx.setLineDash([]);
-    const top = f.points.reduce((a, b) => (b[1] > a[1] ? b : a));
-    const [lx, ly] = toScreen(...top);
-    ctx.fillStyle = style.color; ctx.font = "bold 11px system-ui, sans-serif";
-    ctx.fillText(horizonText(f.horizon), lx + 4, ly - 5);
   }
+  labelForecasts();
+}
+
+// Each outline's label at its northernmost vertex, nearest horizon first; a label that would
+// cover one already placed moves up a line (the outlines of one forecast often share a top).
+function labelForecasts() {
+  ctx.font = "bold 11px system-ui, sans-serif";
+  const placed = [];
+  state.forecasts.forEach((f, i) => {
+    const text = horizonText(f.horizon), width = ctx.measureText(text).width;
+    let [x, y] = toScreen(...f.points.reduce((a, b) => (b[1] > a[1] ? b : a)));
+    x += 4; y -= 5;
+    const covers = (r) => x < r.x + r.w && r.x < x + width && Math.abs(r.y - y) < 13;
+    for (let tries = 0; tries < 8 && placed.some(covers); tries++) y -= 13;
+    placed.push({ x, y, w: width });
+    ctx.fillStyle = FORECAST_STYLES[i % FORECAST_STYLES.length].color;
+    ctx.fillText(text, x, y);
+  });
 }
 
 // Seglists (the helm's waypoint lists) first and faint, so the polygons and points drawn over
