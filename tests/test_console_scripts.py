@@ -53,7 +53,7 @@ def test_docs_page_linked_from_the_index(name):
     assert f"]({doc})" in (ROOT / "docs" / "index.md").read_text(), f"docs/index.md does not link {doc}"
 
 
-@pytest.mark.parametrize("name", ["moosdb", "uPokeDB", "uSimMarine", "oilspill-forecaster"])
+@pytest.mark.parametrize("name", ["moosdb", "uPokeDB", "uSimMarine"])   # the DB, a tool, a MOOSApp
 def test_a_reader_that_stops_early_is_no_error(name):
     """`APP --example | head -1`: the closed pipe ends the page quietly."""
     proc = subprocess.Popen([str(Path(sys.executable).parent / name), "--example"], stdout=subprocess.PIPE,
