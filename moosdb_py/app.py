@@ -167,6 +167,9 @@ class MOOSApp:
                         await self._stop.wait()
                 except TimeoutError:
                     pass
+            mail, self._mail = self._mail, []
+            if mail:   # mail that arrived with the stop request is still handled (pLogger writes it)
+                self.on_new_mail(mail)
         finally:
             self.client.close()
             try:

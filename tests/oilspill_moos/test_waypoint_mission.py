@@ -23,6 +23,8 @@ def test_alpha_survey_passes_every_waypoint_in_order_and_returns(tmp_path, free_
             await poke(mission, "DEPLOY=true", "MOOS_MANUAL_OVERRIDE=false")
             # about 215 s of mission time: 410 m of survey at 3 m/s, 150 m home at 2 m/s
             await async_wait_until(lambda: latest(watcher, "MISSION") == "complete", 40, interval=0.1)
+            # pLogger flushes each AppTick: stop only once the endflags are on disk
+            await async_wait_until(lambda: _logged(tmp_path, "MISSION", "complete"), 10, interval=0.1)
     asyncio.run(scenario())
 
     alog = mission_alog(tmp_path)
@@ -49,3 +51,9 @@ def test_alpha_survey_passes_every_waypoint_in_order_and_returns(tmp_path, free_
     reports = alog.values("NODE_REPORT_LOCAL")
     assert reports and all(str(r).startswith("NAME=alpha,X=") for r in reports)
     assert any(",MODE=DRIVE," in str(r) for r in reports)
+
+
+def _logged(folder, key: str, value: str) -> bool:
+    """True once the mission's alog on disk has a line posting `key` = `value`."""
+    return any(line.split()[1:2] == [key] and line.rstrip().endswith(f" {value}")
+               for log in folder.glob("LOG_*/*.alog") for line in log.read_text(errors="replace").splitlines())
