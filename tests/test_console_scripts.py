@@ -1,8 +1,10 @@
 """Every console script resolves; every app answers --help, --example and --interface; every one has a
-docs page linked from docs/index.md; a reader that closes the pipe early gets no traceback."""
+docs page linked from docs/index.md, an app's page carrying its --example block; a reader that closes
+the pipe early gets no traceback."""
 from __future__ import annotations
 
 import importlib
+import inspect
 import subprocess
 import sys
 import tomllib
@@ -11,15 +13,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPTS = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+SCRIPTS = PROJECT["scripts"]
+APPS = PROJECT["entry-points"]["moosdb_py.apps"]     # the MOOSApp classes pAntler can host
 TOOLS = {"nsplug", "moos-lint"}          # file tools, not MOOS apps: --help only
 NOT_DB_CLIENTS = {"oilspill-forecaster"}  # talks TCP to pPathAssign: its interface is input and output
 DOCS = {"oilspill-forecaster": "forecaster.md", "nsplug": "mission-files.md", "pantler": "pAntler.md",
         "uSimMarineV22": "uSimMarine.md", "pMarinePIDV22": "pMarinePID.md"}
 
 
-def entry(name: str):
-    module, _, attr = SCRIPTS[name].partition(":")
+def entry(name: str, table: dict = SCRIPTS):
+    module, _, attr = table[name].partition(":")
     return getattr(importlib.import_module(module), attr)
 
 
@@ -51,6 +55,15 @@ def test_docs_page_linked_from_the_index(name):
     doc = DOCS.get(name, f"{name}.md")
     assert (ROOT / "docs" / doc).is_file(), doc
     assert f"]({doc})" in (ROOT / "docs" / "index.md").read_text(), f"docs/index.md does not link {doc}"
+
+
+@pytest.mark.parametrize("name", sorted(APPS))
+def test_docs_page_carries_the_example_block(name):
+    app = entry(name, APPS)
+    page = (ROOT / "docs" / f"{app.default_name}.md").read_text()
+    missing = [line.strip() for line in inspect.cleandoc(app.example_config).splitlines()
+               if line.strip() and line.strip() not in page]
+    assert not missing, f"docs/{app.default_name}.md lacks these --example lines: {missing}"
 
 
 @pytest.mark.parametrize("name", ["moosdb", "uPokeDB", "uSimMarine"])   # the DB, a tool, a MOOSApp
