@@ -31,6 +31,7 @@ from moosdb_py import codec
 from moosdb_py.message import MOOSMsg
 
 BATCH = 100
+MIXED = 20            # variables taking turns in the mixed fan-in packets (as an app's outbox holds them)
 WINDOW = 200_000      # deliveries the publishers may run ahead of the subscribers (a few MB per subscriber)
 DEFAULT_DB = f"{sys.executable} -m moosdb_py.moosdb --port {{port}}"
 
@@ -67,8 +68,8 @@ def timing() -> MOOSMsg:
     return MOOSMsg("T", "D", "_async_timing", 0.0, time=time.time())
 
 
-def register(sock: socket.socket, name: str, key: str) -> None:
-    send(sock, timing(), MOOSMsg("R", "D", key, 0.0, source=name, time=time.time()))
+def register(sock: socket.socket, name: str, *keys: str) -> None:
+    send(sock, timing(), *(MOOSMsg("R", "D", key, 0.0, source=name, time=time.time()) for key in keys))
 
 
 def count_messages(framer: codec.StreamFramer, data: bytes) -> int:
@@ -107,8 +108,9 @@ def cpu_seconds(pid: int) -> float:
 
 
 # -- throughput: publishers and subscribers in two processes ----------------------------------------
-def publishers(port: int, n: int, tag: str, ready, go, stop, n_sub: int, sent, delivered) -> None:
-    """n publishers, each writing BENCH in packets of 100 notifies as fast as the DB takes them
+def publishers(port: int, n: int, tag: str, keys: tuple[str, ...], ready, go, stop, n_sub: int, sent,
+               delivered) -> None:
+    """n publishers, each writing `keys` in turn in packets of 100 notifies as fast as the DB takes them
     (and the subscribers read them)."""
     sel = selectors.DefaultSelector()
     pending = {}
@@ -116,7 +118,7 @@ def publishers(port: int, n: int, tag: str, ready, go, stop, n_sub: int, sent, d
     for i in range(n):
         sock, _ = connect(port, f"bench_pub{tag}_{i}")
         sock.setblocking(False)
-        packets.append(codec.encode_packet([MOOSMsg.notification("BENCH", float(k), time=time.time(),
+        packets.append(codec.encode_packet([MOOSMsg.notification(keys[k % len(keys)], float(k), time=time.time(),
                                                                  source=f"bench_pub{tag}_{i}", msg_id=k)
                                             for k in range(BATCH)]))
         pending[i] = memoryview(packets[i])
@@ -139,13 +141,14 @@ def publishers(port: int, n: int, tag: str, ready, go, stop, n_sub: int, sent, d
         key.fileobj.close()
 
 
-def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result, delivered) -> None:
-    """n subscribers of BENCH counting what arrives in the measuring window (after a warm-up)."""
+def subscribers(port: int, n: int, tag: str, keys: tuple[str, ...], ready, go, seconds: float, result,
+                delivered) -> None:
+    """n subscribers of `keys` counting what arrives in the measuring window (after a warm-up)."""
     sel = selectors.DefaultSelector()
     socks = []
     for i in range(n):
         sock, framer = connect(port, f"bench_sub{tag}_{i}")
-        register(sock, f"bench_sub{tag}_{i}", "BENCH")
+        register(sock, f"bench_sub{tag}_{i}", *keys)
         sock.setblocking(False)
         sel.register(sock, selectors.EVENT_READ, framer)
         socks.append(sock)
@@ -176,17 +179,19 @@ def subscribers(port: int, n: int, tag: str, ready, go, seconds: float, result, 
         sock.close()
 
 
-def throughput(pid: int, port: int, n_pub: int, n_sub: int, seconds: float) -> tuple[float, float]:
+def throughput(pid: int, port: int, n_pub: int, n_sub: int, seconds: float,
+               keys: tuple[str, ...] = ("BENCH",)) -> tuple[float, float]:
     """Messages delivered per second, and the DB's CPU time per delivered message (load-independent)."""
     ctx = mp.get_context("fork")
     subs_ready, pubs_ready, go, stop = ctx.Event(), ctx.Event(), ctx.Event(), ctx.Event()
     received = ctx.Value("q", 0)
     sent, delivered = ctx.RawValue("q", 0), ctx.RawValue("q", 0)
-    tag = f"{n_pub}x{n_sub}"
-    subs = ctx.Process(target=subscribers, args=(port, n_sub, tag, subs_ready, go, seconds, received, delivered))
+    tag = f"{n_pub}x{n_sub}x{len(keys)}"
+    subs = ctx.Process(target=subscribers, args=(port, n_sub, tag, keys, subs_ready, go, seconds, received, delivered))
     subs.start()
     subs_ready.wait(300)
-    pubs = ctx.Process(target=publishers, args=(port, n_pub, tag, pubs_ready, go, stop, n_sub, sent, delivered))
+    pubs = ctx.Process(target=publishers,
+                       args=(port, n_pub, tag, keys, pubs_ready, go, stop, n_sub, sent, delivered))
     pubs.start()
     pubs_ready.wait(300)
     go.set()
@@ -267,13 +272,17 @@ def bench(template: str, seconds: float, idle: int) -> dict:
             rate, cost = throughput(proc.pid, port, n, 1, seconds)
             out[f"fan-in {n:>2} pub -> 1 sub (msg/s)"] = rate
             out[f"fan-in {n:>2} pub -> 1 sub (DB CPU us/msg)"] = cost
+        rate, cost = throughput(proc.pid, port, 4, 1, seconds, tuple(f"BENCH_{k}" for k in range(MIXED)))
+        out[f"fan-in  4 pub -> 1 sub, {MIXED} variables mixed (msg/s)"] = rate
+        out[f"fan-in  4 pub -> 1 sub, {MIXED} variables mixed (DB CPU us/msg)"] = cost
         for n in (1, 8, 32):
             rate, cost = throughput(proc.pid, port, 1, n, seconds)
             out[f"fan-out 1 pub -> {n:>2} sub (deliveries/s)"] = rate
             out[f"fan-out 1 pub -> {n:>2} sub (DB CPU us/delivery)"] = cost
-        rtt = round_trips(port, "RTT", 1.0, 300, 0.005)
+        rtt = round_trips(port, "RTT", 1.0, 300, 0.005)      # low rate: each one wakes both processes
         out["round trip p50 (ms)"] = statistics.median(rtt) * 1e3
         out["round trip p99 (ms)"] = statistics.quantiles(rtt, n=100)[98] * 1e3
+        out["round trip back to back p50 (ms)"] = statistics.median(round_trips(port, "RTT2", 1.0, 2000, 0.0)) * 1e3
         big = round_trips(port, "BIG", os.urandom(1 << 20), 10, 0.0)
         out["1 MB binary round trip p50 (ms)"] = statistics.median(big) * 1e3
         accept, cpu, alive = idle_clients(proc, port, idle, 5.0)
