@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Union
 
 from .domain import IvPDomain
+from .geometry import fmt_num
 from .flags import FLAG_KINDS, FlagError, FlagSpec, expand_macros, parse_flag
 from .ivp_function import IvPFunction
 from .logic import ConditionError, as_number, parse_behavior_condition
@@ -218,6 +219,8 @@ class IvPBehavior:
             names.append(self.duration.reset_var)
         if self.nostarve:
             names += self.nostarve[0]
+        if any(f.dest.lstrip("#").rstrip("+").lower() == "group" for fl in self.flags.values() for f in fl):
+            names.append(self.own_group_var())
         return names + list(self.info_vars)
 
     # ---- posting --------------------------------------------------------------------
@@ -229,9 +232,38 @@ class IvPBehavior:
 
     def post_flags(self, kind: str) -> None:
         for flag in self.flags.get(kind, []):
-            if flag.holds(self.info.get):
-                self.post(flag.var, expand_macros(flag.value, self.macro), key=kind,
-                          repeatable=kind in REPEATABLE_FLAGS)
+            if not flag.holds(self.info.get):
+                continue
+            value = expand_macros(flag.value, self.macro)
+            repeatable = kind in REPEATABLE_FLAGS
+            if flag.dest:
+                self.post("NODE_MESSAGE_LOCAL", self.node_message(flag.dest, flag.var, value),
+                          key=kind + flag.var, repeatable=repeatable)
+            if not flag.dest or flag.dest.endswith("+"):
+                self.post(flag.var, value, key=kind, repeatable=repeatable)
+
+    def own_group_var(self) -> str:
+        return f"{self.ownship.upper()}_NAV_GROUP"
+
+    def node_message(self, dest: str, var: str, value: Value) -> str:
+        """A flag for other vehicles (`#all`, `#group`, `#group=red`, `#abe`; `+` = also local), in the
+        NODE_MESSAGE_LOCAL format uFldNodeBroker/uFldNodeComms carry: src_node, dest_node, dest_group,
+        var_name, double_val | string_val (quoted when it holds a comma)."""
+        dest = dest.lstrip("#").rstrip("+")
+        group = ""
+        if dest.lower() == "group":
+            dest, group = "all", str(self.info.get(self.own_group_var()) or "")
+        elif dest.lower().startswith("group="):
+            dest, group = "all", dest.partition("=")[2]
+        fields = [f"src_node={self.ownship}", f"dest_node={dest}"] + ([f"dest_group={group}"] if group else [])
+        fields.append(f"var_name={var}")
+        if isinstance(value, float):
+            fields.append(f"double_val={fmt_num(value, 6)}")
+        elif "," in value and not (value.startswith('"') and value.endswith('"')):
+            fields.append(f'string_val="{value}"')
+        else:
+            fields.append(f"string_val={value}")
+        return ",".join(fields)
 
     def macro(self, name: str) -> Value | None:
         """Value of a `$[NAME]` macro, or None to leave it as typed."""

@@ -41,6 +41,9 @@ class BHV_Waypoint(IvPBehavior):
         self.point_start = False
         self.odo_leg = 0.0
         self.odo_last: tuple[float, float] | None = None   # None: pick up from here (fresh run)
+        self.efficiency = False
+        self.eff_mark: tuple[float, float, float] | None = None   # x, y, time where the measured leg began
+        self.eff_totals = np.zeros(4)    # linear dist, odometer dist, linear time, actual time
         self.flags.update(cycleflag=[], wptflag=[])
 
     def is_flag_kind(self, key: str) -> bool:
@@ -84,11 +87,20 @@ class BHV_Waypoint(IvPBehavior):
                 if not self.reversed:
                     self.points = np.vstack([self.points, parse_point(value)])
             elif key == "speed":
-                self.speed = min(parse_number(value, key, 0), self.domain.var("speed").high if "speed" in self.domain else np.inf)
+                speed = min(parse_number(value, key, 0), self.domain.var("speed").high if "speed" in self.domain else np.inf)
+                if speed != self.speed:
+                    self.eff_mark = None    # a leg flown at two speeds says nothing about efficiency
+                self.speed = speed
             elif key == "speed_alt":
-                self.speed_alt = parse_number(value, key)
+                speed_alt = parse_number(value, key)
+                if speed_alt != self.speed_alt:
+                    self.eff_mark = None
+                self.speed_alt = speed_alt
             elif key == "use_alt_speed":
-                self.use_alt_speed = parse_bool(value, key)
+                use_alt = parse_bool(value, key)
+                if use_alt != self.use_alt_speed:
+                    self.eff_mark = None
+                self.use_alt_speed = use_alt
             elif key in ("capture_radius", "radius"):
                 self.capture_radius = parse_number(value, key, 0)
             elif key in ("slip_radius", "nm_radius"):
@@ -141,6 +153,9 @@ class BHV_Waypoint(IvPBehavior):
             elif key == "wptflag_on_start":
                 self.wptflag_on_start = parse_bool(value, key)
             elif key in ("ipf_type", "ipf-type"):
+                if low in ("roc", "rate_of_closure"):
+                    raise ValueError(f"ipf_type '{value}' (rate of closure) is not supported by this helm: "
+                                     "ivp-helm.md gives no formula for it; use zaic or zaic_spd")
                 if low not in ("zaic", "zaic_spd"):
                     raise ValueError(f"ipf_type must be zaic or zaic_spd, got '{value}'")
                 self.ipf_type = low
@@ -155,9 +170,10 @@ class BHV_Waypoint(IvPBehavior):
                 self.end_spd = (slow, stop)
             elif key == "reset_on_idle":
                 self.reset_on_idle = parse_bool(value, key)
-            elif key in ("efficiency_measure",):
+            elif key == "efficiency_measure":
                 if low not in ("all", "off"):
                     raise ValueError("efficiency_measure must be all or off")
+                self.efficiency = low == "all"
             elif key in ("greedy_tour", "shortest_tour"):
                 if parse_bool(value, key) and len(self.points) > 1:
                     self.set_points(self.greedy_tour(*self._ownship()))
@@ -309,9 +325,31 @@ class BHV_Waypoint(IvPBehavior):
         self.post("VIEW_POINT", f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},"
                   f"active={str(active).lower()}", key=label)
 
+    def measure_leg(self, osx: float, osy: float) -> None:
+        """WPT_EFF_*: straight-line versus flown distance and time from the last mark to here.
+
+        The first leg after a start, an idle spell or a speed change only sets the mark."""
+        if self.eff_mark is not None:
+            mx, my, mt = self.eff_mark
+            linear = float(distance(osx, osy, mx, my))
+            cruise = self.speed
+            leg = np.array([linear, self.odo_leg, linear / cruise if cruise > 0 else 0.0, self.now - mt])
+            self.eff_totals += leg
+            for scope, (lin, odo, lin_t, odo_t) in (("LEG", leg), ("ALL", self.eff_totals)):
+                eff_d, eff_t = (lin / odo if odo > 0 else 0.0), (lin_t / odo_t if odo_t > 0 else 0.0)
+                self.post_report(f"WPT_EFF_SUMM_{scope}", ", ".join((
+                    f"vname={self.ownship}", f"bhv_name={self.name}", f"linear_dist={fmt_num(lin, 1)}",
+                    f"odo_dist={fmt_num(odo, 1)}", f"efficiency_dist={fmt_num(eff_d)}",
+                    f"linear_time={fmt_num(lin_t, 1)}", f"odo_time={fmt_num(odo_t, 1)}",
+                    f"efficiency_time={fmt_num(eff_t)}")))
+                self.post_report(f"WPT_EFF_DIST_{scope}", eff_d)
+                self.post_report(f"WPT_EFF_TIME_{scope}", eff_t)
+        self.eff_mark = (osx, osy, self.now)
+
     def on_run_to_idle(self) -> None:
         self.cpa = None
         self.odo_last = None
+        self.eff_mark = None
         for var in (self.dist_prev_var, self.dist_next_var):
             if var:
                 self.post(var, -1.0)
@@ -346,6 +384,8 @@ class BHV_Waypoint(IvPBehavior):
         self.odo_last = (osx, osy)
         result = self.advance(osx, osy)
         if result != "in-transit":
+            if self.efficiency:
+                self.measure_leg(osx, osy)
             self.odo_leg = 0.0       # a new leg starts at the waypoint just reached
         self.post_report("WPT_ODO", round(self.odo_leg, 2))
         if result in ("cycled", "completed"):

@@ -15,11 +15,12 @@ class GeometryError(ValueError):
     """A point, seglist or polygon string that does not parse."""
 
 
-def fmt_num(v: float) -> str:
-    """MOOS's number printing in posts and macros: at most 3 decimals, no trailing zeros."""
+def fmt_num(v: float, digits: int = 3) -> str:
+    """MOOS's number printing in posts and macros (doubleToStringX): at most `digits` decimals, no
+    trailing zeros."""
     if float(v).is_integer():
         return str(int(v))
-    text = f"{v:.3f}".rstrip("0").rstrip(".")
+    text = f"{v:.{digits}f}".rstrip("0").rstrip(".")
     return "0" if text == "-0" else text
 
 

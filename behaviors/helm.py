@@ -7,6 +7,7 @@ Spec: ivp-helm.md §1-3.
 from __future__ import annotations
 
 import time as _time
+from time import perf_counter
 from typing import Union
 
 from moosdb_py.source import MissionFileError
@@ -32,7 +33,7 @@ BEHAVIOR_TYPES: dict[str, type[IvPBehavior]] = {
                 BHV_Loiter)
 }
 ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
-                     "MOOS_MANUAL_OVERIDE", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
+                     "MOOS_MANUAL_OVERIDE", "DB_CLIENTS", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
                      "IVPHELM_STATE")
 EMPTY_DECISIONS = ("NothingToDo", "NoGoalBehavior")
 
@@ -91,6 +92,12 @@ class Helm:
         self.bhv_lists: dict[str, str] = {}
         self.first_iteration: set[str] = set()
         self.last_map_clear = -1e9
+        self.nav_grace = 5.0
+        self.hold_on_apps: list[str] = []
+        self.config_warnings: list[str] = []   # each one means MALCONFIG
+        self.run_warnings: list[str] = []      # nav grace, holds: reported once each
+        self.timing = {"create_time": 0.0, "solve_time": 0.0, "loop_time": 0.0}
+        self.max_timing = {"max_create_time": 0.0, "max_solve_time": 0.0, "max_loop_time": 0.0}
 
     def _track_deltas(self) -> None:
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
@@ -116,8 +123,16 @@ class Helm:
         out.append(("IVPHELM_DOMAIN", self.domain.describe(), ""))
         modeset = "#".join(f"{m.var}={m.value}{'@' + m.prefix if m.prefix else ''}" for m in self.modes)
         out.append(("IVPHELM_MODESET", modeset, ""))
+        out.append(("IVPHELM_STATEVARS", ",".join(self.state_vars()), ""))
         out += [("IVPHELM_REGISTER", v, "") for v in self.subscriptions()]
         return out
+
+    def state_vars(self) -> list[str]:
+        """Variables the behaviours' states depend on: mode and behaviour conditions."""
+        names = [v for m in self.modes for c in m.conditions for v in c.variables()]
+        for bhv in self.behaviors + [t for _, t in self.templates.values()]:
+            names += [v for c in bhv.conditions for v in c.variables()]
+        return list(dict.fromkeys(names))
 
     # ---- mail -------------------------------------------------------------------------
     def on_mail(self, var: str, value: Value | bytes, time: float, source: str = "") -> None:
@@ -141,8 +156,28 @@ class Helm:
             self.last_sent.clear()
         self.info.set(var, value, time)
 
-    def malconfig(self) -> None:
+    def malconfig(self, warning: str) -> None:
+        self.config_warnings.append(warning)
         self.status = "MALCONFIG"
+
+    def _warn_once(self, warning: str) -> None:
+        if warning not in self.run_warnings:
+            self.run_warnings.append(warning)
+
+    def _holding(self, now: float) -> bool:
+        """Nav hold (NAV_* not all seen yet) and hold_on_apps (apps not all in DB_CLIENTS)."""
+        nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in self.domain else [])
+        missing = [v for v in nav_needed if self.info.get(v) is None]
+        if missing and now - self.start_time > self.nav_grace:
+            self._warn_once(f"No {','.join(missing)} received after nav_grace={self.nav_grace:g} s")
+        if self.hold_on_apps:
+            clients = {c.strip() for c in str(self.info.get("DB_CLIENTS") or "").split(",")}
+            absent = [a for a in self.hold_on_apps if a not in clients]
+            if not absent:
+                self.hold_on_apps = []
+            elif now - self.start_time > self.nav_grace:
+                self._warn_once(f"hold_on_apps: holding until {','.join(absent)} connect (DB_CLIENTS)")
+        return bool(missing or self.hold_on_apps)
 
     # ---- one iteration ---------------------------------------------------------------
     def iterate(self, now: float) -> list[HelmPost]:
@@ -155,8 +190,7 @@ class Helm:
         self.last_state = self.status
         if self.status not in ("PARK", "DRIVE"):
             return out
-        nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in self.domain else [])
-        if any(self.info.get(v) is None for v in nav_needed):
+        if self._holding(now):
             return out
         if self.seen_own_state and not self.deferred_done:
             self.deferred_done = True
@@ -169,6 +203,7 @@ class Helm:
             return out
         if now - self.start_time < 1.0:
             return out
+        loop_start = perf_counter()
         self._spawn(now, out)
         mode_posts = self._evaluate_modes(now)
         functions: list[IvPFunction] = []
@@ -179,7 +214,9 @@ class Helm:
                 functions.append(fn)
             bhv_posts += [(bhv, p) for p in bhv.posts]
             bhv.posts = []
+        solve_start = perf_counter()
         self.decision = solve(self.domain, functions) if functions else {}
+        self._note_times(create=solve_start - loop_start, solve=perf_counter() - solve_start)
         out += mode_posts
         error = False
         for bhv, post in bhv_posts:
@@ -201,10 +238,16 @@ class Helm:
             out.append(("BHV_ERROR", status, ""))
         else:
             status = "clear"
+        self._note_times(loop=perf_counter() - loop_start)
         out += self._summary(now, functions)
         out += self._allstop(status)
         self.info.clear_deltas()
         return out
+
+    def _note_times(self, **seconds: float) -> None:
+        for name, value in seconds.items():
+            self.timing[f"{name}_time"] = value
+            self.max_timing[f"max_{name}_time"] = max(self.max_timing[f"max_{name}_time"], value)
 
     def _allstop(self, status: str) -> list[HelmPost]:
         out: list[HelmPost] = []
@@ -402,7 +445,10 @@ class Helm:
             groups.get(bhv.state.upper(), groups["IDLE"]).append(bhv.name)
         fields = {
             "ofnum": str(len(functions)),
+            "warnings": str(len(self.config_warnings) + len(self.run_warnings)),
+            **{k: f"{v:.4f}" for k, v in (self.timing | self.max_timing).items()},
             "halted": "false",
+            "active_goal": "false",
             "modes": "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items())),
             "active_bhvs": ":".join(groups["ACTIVE"]) or "none",
             "running_bhvs": ":".join(groups["RUNNING"]) or "none",

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from moosdb_py.app import MOOSApp
@@ -12,6 +13,14 @@ from .helm import Helm
 from .logic import as_number
 
 EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
+# Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
+# anything else is a config warning that puts the helm in MALCONFIG, as the C++ helm does.
+KNOWN_PARAMS = frozenset({
+    "apptick", "commstick", "maxappticks", "iteratemode", "debug", "app_logging",
+    "behaviors", "domain", "active_start", "start_engaged", "start_in_drive", "allow_park", "park_on_allstop",
+    "helm_prefix", "ok_skew", "goals_mandatory", "nav_grace", "hold_on_apps", "verbose",
+    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs"})
+NOT_SUPPORTED = frozenset({"standby", "other_override_var"})   # real pHelmIvP keys this helm lacks
 
 
 def _bool(value: str, key: str) -> bool:
@@ -46,14 +55,19 @@ ProcessConfig = pHelmIvP
   helm_prefix     =               // prepended to the DESIRED_* names (e.g. SIM_ -> SIM_DESIRED_HEADING)
   ok_skew         = 60            // seconds, or any: ignore mail stamped further from MOOS time
   goals_mandatory = false         // accepted for compatibility
-  nav_grace       = 5             // accepted for compatibility
+  nav_grace       = 5             // seconds without NAV_* before a warning (counted in IVPHELM_SUMMARY)
+  hold_on_apps    =               // comma list: make no decision until these apps are in DB_CLIENTS
   verbose         = false         // accepted for compatibility
-}"""
+  bhv_dir_not_found_ok = false    // accepted for compatibility (no behaviour libraries to load)
+  app_logging     = false         // accepted for compatibility
+}
+// Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning."""
     interface = """\
 SUBSCRIPTIONS
   NAV_X, NAV_Y, NAV_HEADING, NAV_SPEED, NAV_DEPTH     ownship navigation
   MOOS_MANUAL_OVERRIDE (and MOOS_MANUAL_OVERIDE)      "false" = drive, "true" = park
   HELM_MAP_CLEAR                                      re-post everything (viewers)
+  DB_CLIENTS                                          for hold_on_apps
   IVPHELM_STATE                                       another helm posting disables this one
   every variable in behaviour/mode/flag conditions, updates and duration_reset variables
 PUBLICATIONS
@@ -61,7 +75,9 @@ PUBLICATIONS
   IVPHELM_STATE      PARK | DRIVE | MALCONFIG | DISABLED, every iteration
   IVPHELM_ALLSTOP    clear | NothingToDo | MissingDecVars:.. | BehaviorError | ManualOverride
   IVPHELM_SUMMARY, IVPHELM_ITER, IVPHELM_BHV_ACTIVE/RUNNING/IDLE[_CNT], IVPHELM_LIFE_EVENT
-  IVPHELM_UPDATE_RESULT, IVPHELM_DOMAIN, IVPHELM_MODESET, IVPHELM_REGISTER, PLOGGER_CMD, BHV_STATUS
+  IVPHELM_UPDATE_RESULT, IVPHELM_DOMAIN, IVPHELM_MODESET, IVPHELM_STATEVARS, IVPHELM_REGISTER,
+  PLOGGER_CMD, PHELMIVP_PID, BHV_STATUS
+  NODE_MESSAGE_LOCAL  flags written `#all VAR = value` etc., for uFldNodeBroker to send on
   mode variables (e.g. MODE = ACTIVE:SURVEYING), initialize values, behaviour flags and posts
   (WPT_STAT, WPT_INDEX, CYCLE_INDEX, VIEW_POINT, VIEW_SEGLIST, VIEW_POLYGON, DIST_TO_STATION,
   PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, ...)"""
@@ -90,8 +106,21 @@ PUBLICATIONS
                          park_on_allstop=_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
                          helm_prefix=cfg.get("helm_prefix", "") or "")
         _bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
+        grace = as_number(cfg.get("nav_grace", "5") or "")
+        if grace is None or grace < 0:
+            raise ValueError(f"nav_grace must be seconds >= 0, got '{cfg.get('nav_grace')}'")
+        self.helm.nav_grace = grace
+        self.helm.hold_on_apps = [a.strip() for v in cfg.get_all("hold_on_apps") for a in v.split(",") if a.strip()]
+        for entry in self.config.entries:
+            if entry.key.lower() in NOT_SUPPORTED:
+                self.helm.malconfig(f"{entry.source}: pHelmIvP parameter '{entry.key}' is not supported by this helm")
+            elif entry.key.lower() not in KNOWN_PARAMS:
+                self.helm.malconfig(f"{entry.source}: unknown pHelmIvP parameter '{entry.key}'")
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
-            self.helm.malconfig()
+            self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
+        for warning in self.helm.config_warnings:
+            print(f"{self.name}: {warning} -> MALCONFIG, the helm will not drive", file=sys.stderr)
+        self.warned = len(self.helm.run_warnings)
         self.bhv_paths = [f.path for f in files]
         self.pending_startup = self.helm.startup(self.moos_time())
         self.registered_at: dict[str, float] = {}
@@ -124,6 +153,7 @@ PUBLICATIONS
                 self.notify(var, value, source_aux=aux)
             for path in self.bhv_paths:
                 self.notify("PLOGGER_CMD", f"COPY_FILE_REQUEST = {path}")
+            self.notify("PHELMIVP_PID", float(os.getpid()))
             self.pending_startup = []
 
     def on_new_mail(self, mail) -> None:
@@ -143,9 +173,13 @@ PUBLICATIONS
     def iterate(self) -> None:
         for var, value, aux in self.helm.iterate(self.moos_time()):
             self.notify(var, value, source_aux=aux)
+        for warning in self.helm.run_warnings[self.warned:]:
+            print(f"{self.name}: {warning}", file=sys.stderr)
+        self.warned = len(self.helm.run_warnings)
 
     def status_fields(self) -> dict:
-        return {"state": self.helm.status, "iter": self.helm.iteration}
+        return {"state": self.helm.status, "iter": self.helm.iteration,
+                "warnings": len(self.helm.config_warnings) + len(self.helm.run_warnings)}
 
 
 main = HelmIvP.main
