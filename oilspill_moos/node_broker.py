@@ -9,11 +9,12 @@ posts out, so the handshake can be tested without sockets.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.host_info import HostRecord, format_warp, iroutes_from_summary
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.app_config import config_bool, format_number, parse_pairs, unhandled_entries
+from oilspill_moos.app_config import config_bool, parse_pairs, unhandled_entries
 
 log = logging.getLogger(__name__)
 
@@ -43,55 +44,17 @@ def pairs_at(text: str, where: str) -> dict[str, str]:
         raise ValueError(f"{where}: {exc}") from None
 
 
-@dataclass
-class HostRecord:
-    """A host record (PHI_HOST_INFO, pings and acks); field order is the wire order."""
-
-    community: str = ""
-    hostip: str = ""
-    port_db: str = ""
-    port_udp: str = ""
-    pshare_iroutes: str = ""
-    keyword: str = ""
-    hostip_alts: str = ""
-    timewarp: str = ""
-    status: str = ""
-    time: str = ""
-    key: str = ""
-
-    def spec(self) -> str:
-        return ",".join(f"{f.name}={getattr(self, f.name)}" for f in fields(self) if getattr(self, f.name))
-
-    @classmethod
-    def parse(cls, text: str) -> "HostRecord":
-        """Any field order; `vname` is an alias of `community`, which is the only required field."""
-        names = {f.name for f in fields(cls)}
-        values: dict[str, str] = {}
-        for key, value in pairs_at(text, "host record").items():
-            if key == "vname":
-                key = "community"
-            if key in names:
-                values[key] = value
-        if not values.get("community"):
-            raise ValueError(f"host record without community: '{text}'")
-        return cls(**values)
-
-    def iroutes(self) -> list[str]:
-        return [r for r in self.pshare_iroutes.split("&") if r]
-
-
 def own_host_record(community: str, hostip: str, port_db: int, input_summary: str, time_warp: float) -> HostRecord:
     """The record pHostInfo would post, built from the mission and pShare's PSHARE_INPUT_SUMMARY.
 
     Used when no pHostInfo runs in the community; a PHI_HOST_INFO that arrives wins.
     """
-    routes = [r.strip() for r in input_summary.split(",") if r.strip()]
     return HostRecord(
         community=community,
         hostip=hostip,
         port_db=str(port_db),
-        pshare_iroutes="&".join(routes),
-        timewarp=format_number(time_warp),  # as pHostInfo writes it: 10, not 10.0
+        pshare_iroutes=iroutes_from_summary(input_summary),
+        timewarp=format_warp(time_warp),
     )
 
 
@@ -165,10 +128,13 @@ class BrokerState:
         self.shared = parse_output_summary(summary)
 
     def on_host_info(self, text: str, community: str) -> None:
-        """PHI_HOST_INFO from our own pHostInfo (one from elsewhere is not ours)."""
+        """PHI_HOST_INFO from our own pHostInfo (one from elsewhere is not ours). It wins over the
+        record built from PSHARE_INPUT_SUMMARY once it carries pShare's routes and the time warp."""
         if community and community != self.community:
             return
         record = HostRecord.parse(text)
+        if not (record.pshare_iroutes and record.timewarp):
+            return
         self.host_record = replace(record, status="", time="", key="")
         self.host_record_from_phi = True
 
