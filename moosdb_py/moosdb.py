@@ -107,6 +107,7 @@ class ClientConnection(asyncio.Protocol):
         self.peer = "?"
         self.state = "protocol"   # -> "name" -> "ready" -> "closed"
         self.framer = codec.StreamFramer(protocol_slot=True, max_packet=db.max_packet)
+        self.scanner = codec.PacketScanner()
         self.name = ""
         self.asynchronous = False
         self.consolidation = 0.0
@@ -351,7 +352,7 @@ class MOOSDB:
 
     # -- packet processing (spec §5) -----------------------------------------------------------
     def process_packet(self, conn: ClientConnection, packet: bytes) -> None:
-        found = codec.scan_packet(packet)
+        found = conn.scanner.scan(packet)
         if not found:
             return
         now = self.now()

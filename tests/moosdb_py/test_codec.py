@@ -164,3 +164,42 @@ def test_scan_packet_fast_path_still_checks_lengths(where):
     packet[9 + (where + 1) * size - 7] = 9       # that message's sval length: 3 -> 9
     with pytest.raises(codec.CodecError):
         codec.scan_packet(bytes(packet))
+
+
+@settings(max_examples=60, deadline=None)
+@given(packets=st.lists(st.lists(st.tuples(st.sampled_from(["X", "NAV_X", "Y", "Z"]), st.one_of(floats, names)),
+                                 min_size=1, max_size=8), min_size=1, max_size=6),
+       corrupt=st.one_of(st.none(), st.integers(0, 10_000)))
+def test_packet_scanner_agrees_with_scan_packet(packets, corrupt):
+    """A client's packets again and again with one layout (values change, layout does not), and
+    sometimes a byte changed: the remembered layout must never let a different packet through."""
+    scanner = codec.PacketScanner()
+    for picks in packets + packets[-1:] * 2:
+        for shift in (0.0, 1.0, 2.0):                  # other doubles, same layout
+            packet = bytearray(codec.encode_packet([MOOSMsg.notification(k, v + shift if isinstance(v, float) else v,
+                                                                         time=shift, source="app") for k, v in picks]))
+            assert _messages(scanner.scan(bytes(packet))) == _messages(codec.scan_packet(bytes(packet)))
+    if corrupt is not None:
+        packet[corrupt % len(packet)] ^= 0x41
+        try:
+            expected = _messages(codec.scan_packet(bytes(packet)))
+        except codec.CodecError:
+            with pytest.raises(codec.CodecError):
+                scanner.scan(bytes(packet))
+        else:
+            assert _messages(scanner.scan(bytes(packet))) == expected
+
+
+def test_packet_scanner_reuses_a_layout_only_for_the_same_layout():
+    scanner = codec.PacketScanner()
+    def packet(key, value):
+        return codec.encode_packet([MOOSMsg.notification("NAV_X", 1.0, time=1.0, source="sim"),
+                                    MOOSMsg.notification(key, value, time=2.0, source="sim")])
+    for value in (1.0, 2.0, 3.0):
+        runs = scanner.scan(packet("NAV_Y", value))
+        assert [r.key for r in runs] == ["NAV_X", "NAV_Y"]
+    assert [r.key for r in scanner.scan(packet("NAV_Z", 4.0))] == ["NAV_X", "NAV_Z"]     # same size, other key
+    bad = bytearray(packet("NAV_Y", 5.0))
+    bad[-4] = 1                                                                        # sval length 0 -> 1
+    with pytest.raises(codec.CodecError):
+        scanner.scan(bytes(bad))
