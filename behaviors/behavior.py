@@ -79,6 +79,24 @@ def parse_number(value: str, what: str, minimum: float | None = None) -> float:
     return number
 
 
+def apply_visual_hints(hints: dict[str, str], value: str) -> None:
+    """`visual_hints = vertex_color=red, edge_size=2`: lines accumulate; keys this behaviour does not
+    draw with are ignored, as MOOS-IvP does; a size must be a number >= 0."""
+    for item in value.split(","):
+        key, sep, val = (part.strip() for part in item.partition("="))
+        key = key.lower()
+        if not sep or key not in hints:
+            continue
+        if key.endswith("size"):
+            val = fmt_num(parse_number(val, f"visual_hints {key}", 0))
+        hints[key] = val
+
+
+def hint_fields(hints: dict[str, str], *keys: str) -> str:
+    """`,key=value` for each hint named, in the order given."""
+    return "".join(f",{k}={hints[k]}" for k in keys)
+
+
 @dataclass
 class Duration:
     limit: float | None = None

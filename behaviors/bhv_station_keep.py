@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from .behavior import IvPBehavior, parse_bool, parse_number
+from .behavior import IvPBehavior, apply_visual_hints, hint_fields, parse_bool, parse_number
 from .geometry import GeometryError, bearing, distance, fmt_num, parse_point
 from .ivp_function import IvPFunction, couple
 from .zaic import PeakComponent, zaic_peak
@@ -36,6 +36,8 @@ class BHV_StationKeep(IvPBehavior):
         self.dist = -1.0
         self.samples: deque[tuple[float, float]] = deque()
         self.transit = "pending_progress_start"
+        self.hints = dict(edge_size="1", vertex_size="1", edge_color="light_blue", label_color="white",
+                          vertex_color="red")
 
     def set_param(self, key: str, value: str) -> bool:
         low = value.lower()
@@ -62,7 +64,7 @@ class BHV_StationKeep(IvPBehavior):
         elif key == "hibernation_radius":
             self.hibernation_radius = -1.0 if low in ("off", "-1") else parse_number(value, key, 0)
         elif key == "visual_hints":
-            pass  # drawing hints for viewers; accepted, the circles use the default colours
+            apply_visual_hints(self.hints, value)
         else:
             return False
         return True
@@ -115,9 +117,9 @@ class BHV_StationKeep(IvPBehavior):
         if self.hibernation_radius > self.outer:
             rings.append(("hiber", self.hibernation_radius))
         for tag, radius in rings:
-            text = (f"radial:: x={x:.1f},y={y:.1f},source={self.ownship}:{self.name},pts=32,edge_size=1,"
-                    f"vertex_size=1,edge_color=light_blue,label_color=white,vertex_color=red,"
-                    f"label={self.ownship}:station-keep-{tag},radius={radius:.1f}")
+            text = (f"radial:: x={x:.1f},y={y:.1f},source={self.ownship}:{self.name},pts=32"
+                    + hint_fields(self.hints, "edge_size", "vertex_size", "edge_color", "label_color", "vertex_color")
+                    + f",label={self.ownship}:station-keep-{tag},radius={radius:.1f}")
             self.post("VIEW_POLYGON", text if active else text + ",active=false", key=tag)
 
     def on_run_to_idle(self) -> None:

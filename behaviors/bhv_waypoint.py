@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .behavior import IvPBehavior, parse_bool, parse_number
+from .behavior import IvPBehavior, apply_visual_hints, hint_fields, parse_bool, parse_number
 from .flags import FlagError
 from .geometry import GeometryError, bearing, distance, fmt_num, format_seglist, parse_point, parse_polygon, parse_seglist
 from .ivp_function import IvPFunction, couple
@@ -42,6 +42,9 @@ class BHV_Waypoint(IvPBehavior):
         self.odo_leg = 0.0
         self.odo_last: tuple[float, float] | None = None   # None: pick up from here (fresh run)
         self.efficiency = False
+        self.greedy_pending = False
+        self.hints = dict(vertex_size="3", edge_size="1", vertex_color="dodger_blue", edge_color="white",
+                          label_color="white", nextpt_color="yellow", nextpt_lcolor="aqua", nextpt_vertex_size="5")
         self.eff_mark: tuple[float, float, float] | None = None   # x, y, time where the measured leg began
         self.eff_totals = np.zeros(4)    # linear dist, odometer dist, linear time, actual time
         self.flags.update(cycleflag=[], wptflag=[])
@@ -103,6 +106,8 @@ class BHV_Waypoint(IvPBehavior):
                 self.use_alt_speed = use_alt
             elif key in ("capture_radius", "radius"):
                 self.capture_radius = parse_number(value, key, 0)
+                if self.capture_radius <= 0:
+                    raise ValueError(f"{key} must be > 0, got '{value}'")
             elif key in ("slip_radius", "nm_radius"):
                 self.slip_radius = parse_number(value, key, 0)
             elif key == "capture_line":
@@ -114,6 +119,8 @@ class BHV_Waypoint(IvPBehavior):
                 self.lead = max(parse_number(value, key), 0.0)
             elif key == "lead_damper":
                 self.lead_damper = parse_number(value, key, 0)
+                if self.lead_damper <= 0:
+                    raise ValueError(f"lead_damper must be > 0, got '{value}'")
             elif key == "lead_to_start":
                 self.lead_to_start = parse_bool(value, key)
             elif key == "lead_condition":
@@ -160,7 +167,9 @@ class BHV_Waypoint(IvPBehavior):
                     raise ValueError(f"ipf_type must be zaic or zaic_spd, got '{value}'")
                 self.ipf_type = low
             elif key in ("crs_spd_zaic_ratio", "patience"):
-                self.ratio = min(max(parse_number(value, key), 1.0), 99.0)
+                self.ratio = parse_number(value, key, 1)
+                if self.ratio > 99:
+                    raise ValueError(f"{key} must be in 1..99, got '{value}'")
             elif key == "end_spd":
                 props = dict(p.split("=", 1) for p in "".join(value.split()).split(",") if "=" in p)
                 slow, stop = parse_number(props.get("slow_dist", ""), "slow_dist", 0), parse_number(
@@ -175,17 +184,24 @@ class BHV_Waypoint(IvPBehavior):
                     raise ValueError("efficiency_measure must be all or off")
                 self.efficiency = low == "all"
             elif key in ("greedy_tour", "shortest_tour"):
-                if parse_bool(value, key) and len(self.points) > 1:
-                    self.set_points(self.greedy_tour(*self._ownship()))
+                self.greedy_pending = parse_bool(value, key)
+                self._greedy_tour_when_nav_known()
             elif key in ("draw_path_loop", "eager_prev_index_flag"):
                 parse_bool(value, key)  # drawing and PI-macro timing details; accepted
             elif key == "visual_hints":
-                pass  # drawing hints for viewers; accepted, the drawings use fixed defaults
+                apply_visual_hints(self.hints, value)
             else:
                 return False
         except (GeometryError, ConditionError, FlagError) as exc:
             raise ValueError(str(exc)) from None
         return True
+
+    def _greedy_tour_when_nav_known(self) -> None:
+        """The tour starts from ownship, so at startup it waits for the first NAV_X/NAV_Y."""
+        if self.greedy_pending and self.info.number("NAV_X") is not None and self.info.number("NAV_Y") is not None:
+            self.greedy_pending = False
+            if len(self.points) > 1:
+                self.set_points(self.greedy_tour(*self._ownship()))
 
     def greedy_tour(self, x: float, y: float) -> np.ndarray:
         """The points reordered nearest-first, starting from (x, y)."""
@@ -216,6 +232,9 @@ class BHV_Waypoint(IvPBehavior):
         }
         if n in values:
             return values[n]
+        if n in ("CYC_DIST_TOGO", "ALL_DIST_TOGO") and npts:
+            return round(self.cycle_distance(*self._ownship()) if n == "CYC_DIST_TOGO"
+                         else self.remaining_distance(*self._ownship()), 3)
         return super().macro(name)
 
     # ---- traversal -----------------------------------------------------------------------
@@ -251,13 +270,17 @@ class BHV_Waypoint(IvPBehavior):
         self.complete = True
         return "completed"
 
+    def cycle_distance(self, osx: float, osy: float) -> float:
+        """Distance to go to the end of this pass over the list."""
+        pts = self.points[self.ix:]
+        legs = np.hypot(*np.diff(pts, axis=0).T).sum() if len(pts) > 1 else 0.0
+        return float(distance(osx, osy, *pts[0])) + float(legs)
+
     def remaining_distance(self, osx: float, osy: float) -> float:
         """Distance to go over the rest of the list and the repeats left; -1 when endless."""
         if self.endless:
             return -1.0
-        pts = self.points[self.ix:]
-        legs = np.hypot(*np.diff(pts, axis=0).T).sum() if len(pts) > 1 else 0.0
-        d = float(distance(osx, osy, *pts[0])) + legs
+        d = self.cycle_distance(osx, osy)
         loop = np.hypot(*np.diff(np.vstack([self.points, self.points[:1]]), axis=0).T).sum()
         return d + max(self.repeat - self.repeats_sofar, 0) * loop if self.perpetual else d
 
@@ -322,8 +345,13 @@ class BHV_Waypoint(IvPBehavior):
             self.post(var + self.suffix, value, **kw)
 
     def post_point(self, label: str, x: float, y: float, active: bool) -> None:
-        self.post("VIEW_POINT", f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},"
-                  f"active={str(active).lower()}", key=label)
+        """Next point and track point in the nextpt hint colours (the track point drawn smaller)."""
+        text = f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},active={str(active).lower()}"
+        if active:
+            size = self.hints["nextpt_vertex_size"] if label == "nextpt" else "4"
+            lcolor = self.hints["nextpt_lcolor"] if label == "nextpt" else self.hints["nextpt_color"]
+            text += f",vertex_color={self.hints['nextpt_color']},label_color={lcolor},vertex_size={size}"
+        self.post("VIEW_POINT", text, key=label)
 
     def measure_leg(self, osx: float, osy: float) -> None:
         """WPT_EFF_*: straight-line versus flown distance and time from the last mark to here.
@@ -368,6 +396,7 @@ class BHV_Waypoint(IvPBehavior):
         if heading is None:
             self.post("BHV_ERROR", f"{self.name}: No ownship NAV_HEADING in info_buffer", repeatable=True)
             return None
+        self._greedy_tour_when_nav_known()
         if self.point_start:
             self.point_start = False
             self.set_points(np.round(np.array([[osx, osy]]), 3))
@@ -414,7 +443,8 @@ class BHV_Waypoint(IvPBehavior):
             self.post(self.dist_next_var, round(dist, 2))
         if self.dist_prev_var:
             self.post(self.dist_prev_var, round(float(distance(osx, osy, *self.prev)), 2))
-        self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name}")
+        self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name}" + hint_fields(
+            self.hints, "vertex_color", "edge_color", "label_color", "edge_size", "vertex_size"))
         self.post_point("nextpt", nx, ny, active=True)
         return self.objective(osx, osy, heading)
 

@@ -142,3 +142,57 @@ def test_roc_objective_is_a_clear_error(domain):
     w = BHV_Waypoint(domain, InfoBuffer(), "abe")
     with pytest.raises(ValueError, match="rate of closure.*not supported.*use zaic or zaic_spd"):
         w.apply("ipf_type", "roc")
+
+
+def test_visual_hints_reach_the_drawings(domain):
+    from behaviors.bhv_station_keep import BHV_StationKeep
+    info = InfoBuffer()
+    w = BHV_Waypoint(domain, info, "abe")
+    for k, v in (("points", "0,50:0,100"), ("visual_hints", "nextpt_color=red, nextpt_vertex_size=8"),
+                 ("visual_hints", "edge_color=off, vertex_size=5, label=ignored")):
+        w.apply(k, v)
+    for var, value in dict(NAV_X=0.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=1.0).items():
+        info.set(var, value, 0.0)
+    w.on_run_state()
+    posts = {(p.var, p.key): p.value for p in w.posts}
+    assert posts[("VIEW_SEGLIST", "")] == ("pts={0,50:0,100},label=abe_bhv_waypoint,vertex_color=dodger_blue,"
+                                           "edge_color=off,label_color=white,edge_size=1,vertex_size=5")
+    assert posts[("VIEW_POINT", "nextpt")] == ("x=0,y=50,label=abe's nextpt,active=true,vertex_color=red,"
+                                               "label_color=aqua,vertex_size=8")
+    with pytest.raises(ValueError, match="visual_hints vertex_size must be a number >= 0"):
+        w.apply("visual_hints", "vertex_size=big")
+    sk = BHV_StationKeep(domain, info, "abe")
+    sk.apply("visual_hints", "edge_color=pink, vertex_size=2")
+    sk.apply("station_pt", "20,-20")
+    sk.on_run_state()
+    circle = next(p.value for p in sk.posts if p.var == "VIEW_POLYGON")
+    assert circle == ("radial:: x=20.0,y=-20.0,source=abe:station_keep,pts=32,edge_size=1,vertex_size=2,"
+                      "edge_color=pink,label_color=white,vertex_color=red,label=abe:station-keep-out,radius=15.0")
+
+
+def test_greedy_tour_waits_for_nav_and_radius_ranges(domain):
+    info = InfoBuffer()
+    w = BHV_Waypoint(domain, info, "abe")
+    w.apply("points", "0,0:90,0:50,0:10,0")
+    w.apply("greedy_tour", "true")                        # at startup ownship is not known yet
+    assert w.points.tolist() == [[0, 0], [90, 0], [50, 0], [10, 0]]
+    for var, value in dict(NAV_X=100.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=1.0).items():
+        info.set(var, value, 0.0)
+    w.on_run_state()
+    assert w.points.tolist() == [[90, 0], [50, 0], [10, 0], [0, 0]]
+    for key, value in (("capture_radius", "0"), ("lead_damper", "0"), ("crs_spd_zaic_ratio", "100")):
+        with pytest.raises(ValueError, match=key):
+            w.apply(key, value)
+
+
+def test_distance_to_go_macros(domain):
+    from behaviors.flags import expand_macros
+    info = InfoBuffer()
+    w = BHV_Waypoint(domain, info, "abe")
+    w.apply("points", "0,10:0,30:20,30")
+    w.apply("repeat", "1")
+    for var, value in dict(NAV_X=0.0, NAV_Y=0.0).items():
+        info.set(var, value, 0.0)
+    loop = 20 + 20 + (20 ** 2 + 20 ** 2) ** 0.5              # list length plus the closing gap
+    assert expand_macros("$[CYC_DIST_TOGO]", w.macro) == 50.0
+    assert expand_macros("$[ALL_DIST_TOGO]", w.macro) == pytest.approx(50 + loop, abs=1e-3)   # one repeat left
