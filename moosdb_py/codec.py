@@ -76,10 +76,6 @@ class WireRun(NamedTuple):
         return self.bounds[0]
 
     @property
-    def end(self) -> int:
-        return self.bounds[-1]
-
-    @property
     def count(self) -> int:
         return len(self.bounds) - 1
 
