@@ -242,8 +242,8 @@ ProcessConfig = uTimerScript
   forward_var = UTS_FORWARD  // N > 0: skip N seconds; 0: jump to the next event (default UTS_FORWARD)
   pause_var   = UTS_PAUSE    // true, false or toggle (default UTS_PAUSE)
   reset_var   = UTS_RESET    // any post starts the script over (default UTS_RESET)
-  status_var  = UTS_STATUS   // where the status goes (default UTS_STATUS)
-  verbose     = true         // post the status on every change (default true); false: never
+  status_var  = UTS_STATUS   // where the status goes, on every change (default UTS_STATUS)
+  verbose     = false        // print every post on the terminal (default false)
 }
 """
     interface = """\
@@ -262,40 +262,52 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         cfg = self.config
-        where = f"{cfg.source}: {self.name}"
-        try:
-            events = [Event.parse(text, f"{where}: event") for text in cfg.get_all("event")]
-            randvars = [RandVar.parse(text, f"{where}: randvar") for text in cfg.get_all("randvar")]
-            conditions = [parse_condition(text) for text in cfg.get_all("condition")]
-            reset_max_text = (cfg.get("reset_max") or "unlimited").strip().lower()
-            reset_max = None if reset_max_text in ("unlimited", "any") else int(reset_max_text)
-            reset_time = (cfg.get("reset_time") or "none").strip()
-            if reset_time.lower() not in ("none", *RESET_AT_END) and as_number(reset_time) is None:
-                raise ValueError(f"{where}: reset_time {reset_time!r} is not none, all-posted, end or seconds")
-            upon_awake = (cfg.get("upon_awake") or "none").strip().lower()
-            if upon_awake not in ("none", "reset", "restart"):
-                raise ValueError(f"{where}: upon_awake {upon_awake!r} is not none, reset or restart")
-            self.state = TimerScriptState(
-                events, script_name=(cfg.get("script_name") or "unnamed").strip(),
-                paused=moos_bool(cfg.get("paused") or "false"), reset_max=reset_max, reset_time=reset_time,
-                delay_start=parse_range(cfg.get("delay_start") or "0", f"{where}: delay_start"),
-                delay_reset=parse_range(cfg.get("delay_reset") or "0", f"{where}: delay_reset"),
-                time_warp=parse_range(cfg.get("time_warp") or "1", f"{where}: time_warp"),
-                conditions=conditions, upon_awake=upon_awake, randvars=randvars)
-        except ConditionError as exc:
-            raise ValueError(f"{where}: condition: {exc}") from None
-        except ValueError as exc:
-            raise ValueError(str(exc) if str(exc).startswith(where) else f"{where}: reset_max: {exc}") from None
+        events = [Event.parse(value, where) for value, where in self._lines("event")]
+        randvars = [RandVar.parse(value, where) for value, where in self._lines("randvar")]
+        conditions = []
+        for value, where in self._lines("condition"):
+            try:
+                conditions.append(parse_condition(value))
+            except ConditionError as exc:
+                raise ValueError(f"{where}: {exc}") from None
+        reset_max_text = self._setting("reset_max", "unlimited").lower()
+        if reset_max_text not in ("unlimited", "any") and not reset_max_text.isdigit():
+            raise ValueError(f"{self._where('reset_max')}: {reset_max_text!r} is not a count or unlimited")
+        reset_time = self._setting("reset_time", "none")
+        if reset_time.lower() not in ("none", *RESET_AT_END) and as_number(reset_time) is None:
+            raise ValueError(f"{self._where('reset_time')}: {reset_time!r} is not none, all-posted, end or seconds")
+        upon_awake = self._setting("upon_awake", "none").lower()
+        if upon_awake not in ("none", "reset", "restart"):
+            raise ValueError(f"{self._where('upon_awake')}: {upon_awake!r} is not none, reset or restart")
+        self.state = TimerScriptState(
+            events, script_name=self._setting("script_name", "unnamed"),
+            paused=moos_bool(self._setting("paused", "false")),
+            reset_max=None if reset_max_text in ("unlimited", "any") else int(reset_max_text), reset_time=reset_time,
+            delay_start=parse_range(self._setting("delay_start", "0"), self._where("delay_start")),
+            delay_reset=parse_range(self._setting("delay_reset", "0"), self._where("delay_reset")),
+            time_warp=parse_range(self._setting("time_warp", "1"), self._where("time_warp")),
+            conditions=conditions, upon_awake=upon_awake, randvars=randvars)
         self.state.conditions_ok = not conditions
-        self.forward_var = (cfg.get("forward_var") or "UTS_FORWARD").strip()
-        self.pause_var = (cfg.get("pause_var") or "UTS_PAUSE").strip()
-        self.reset_var = (cfg.get("reset_var") or "UTS_RESET").strip()
-        self.status_var = (cfg.get("status_var") or "UTS_STATUS").strip()
-        self.verbose = moos_bool(cfg.get("verbose") or "true")
+        self.forward_var = self._setting("forward_var", "UTS_FORWARD")
+        self.pause_var = self._setting("pause_var", "UTS_PAUSE")
+        self.reset_var = self._setting("reset_var", "UTS_RESET")
+        self.status_var = self._setting("status_var", "UTS_STATUS")
+        self.verbose = moos_bool(self._setting("verbose", "false"))
         self.condition_vars = condition_variables(conditions)
         self.last_step: float | None = None
         self.last_status = ""
         self.db_uptime: tuple[float, float] | None = None    # (DB_UPTIME, our time when it came)
+
+    def _lines(self, key: str) -> list[tuple[str, str]]:
+        """Every value of a repeatable parameter, with its `file:line: key` for messages."""
+        return [(e.value, f"{e.source}: {key}") for e in self.config.entries if e.key.lower() == key]
+
+    def _setting(self, key: str, default: str) -> str:
+        return (self.config.get(key) or default).strip()
+
+    def _where(self, key: str) -> str:
+        entry = self.config.entry(key)
+        return f"{entry.source}: {key}" if entry is not None else f"{self.name}: {key}"
 
     def on_connect(self) -> None:
         for var in (self.forward_var, self.pause_var, self.reset_var, "DB_UPTIME", *self.condition_vars):
@@ -324,8 +336,10 @@ PUBLICATIONS:
         self.last_step = now
         for key, value in self.state.step(dt, self.macros(now)):
             self.notify(key, value)
+            if self.verbose:
+                print(f"{self.name}: {key} = {value} (script time {self.state.elapsed:.2f})", flush=True)
         status = self.state.status()
-        if self.verbose and status.split(",", 2)[2] != self.last_status:   # elapsed_time alone is no change
+        if status.split(",", 2)[2] != self.last_status:   # elapsed_time alone is no change
             self.last_status = status.split(",", 2)[2]
             self.notify(self.status_var, status)
 

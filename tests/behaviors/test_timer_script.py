@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import asyncio
 import random
+import re
 
 import pytest
 from helpers import async_wait_until
@@ -89,13 +90,16 @@ def test_pause_forward_delay_warp_and_conditions():
     assert awake.resets == 1 and awake.step(1.0, MACROS) == [("A", 1.0)]
 
 
-def test_bad_config_names_the_block(tmp_path):
+@pytest.mark.parametrize("line, message", [
+    ("event = var=A, val=1, time=x", "m.moos:4: event: time: 'x'"),
+    ("condition = A = = ", "m.moos:4: condition: bad value"),
+    ("reset_max = often", "m.moos:4: reset_max: 'often'"),
+    ("delay_start = 5:1", "m.moos:4: delay_start: '5:1'"),
+])
+def test_bad_config_names_its_line(tmp_path, line, message):
     path = tmp_path / "m.moos"
-    path.write_text("ServerPort = 9000\nProcessConfig = uTimerScript\n{\n  event = var=A, val=1, time=x\n}\n")
-    with pytest.raises(ValueError, match="uTimerScript: event"):
-        TimerScript(path).on_startup()
-    path.write_text("ServerPort = 9000\nProcessConfig = uTimerScript\n{\n  condition = A = = \n}\n")
-    with pytest.raises(ValueError, match="condition"):
+    path.write_text(f"ServerPort = 9000\nProcessConfig = uTimerScript\n{{\n  {line}\n}}\n")
+    with pytest.raises(ValueError, match=re.escape(message)):
         TimerScript(path).on_startup()
 
 
