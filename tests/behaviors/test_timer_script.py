@@ -128,7 +128,7 @@ def test_timer_script_app_on_the_mission_clock(moosdb_server, tmp_path):
             watcher.notify("DEPLOY", "true")
             await async_wait_until(lambda: values("EARLY") == [1.0], timeout=5)
             await async_wait_until(lambda: values("LATE") == ["done"], timeout=8)
-            assert 30 <= watcher.moos_time() - started <= 80      # 40 MOOS seconds, give or take ticks
+            assert 35 <= watcher.moos_time() - started <= 200     # 40 MOOS seconds: never early, late only by load
             watcher.notify("UTS_RESET", "true")
             await async_wait_until(lambda: len(values("EARLY")) == 2, timeout=5)
         finally:

@@ -53,8 +53,8 @@ def test_unknown_app_mid_mission_is_named_once_and_the_rest_runs(tmp_path, free_
 
     async def scenario():
         async with headless(mission, port, WARP, ["DB_CLIENTS", "TIMER_UP"]) as watcher:
-            await async_wait_until(lambda: latest(watcher, "TIMER_UP") == 1.0, timeout=8)
-            await async_wait_until(lambda: "uTimerScript" in clients(watcher), timeout=4)
+            await async_wait_until(lambda: latest(watcher, "TIMER_UP") == 1.0, timeout=15)
+            await async_wait_until(lambda: "uTimerScript" in clients(watcher), timeout=10)
     asyncio.run(scenario())
 
     log = tmp_path / "antler.log"
@@ -76,9 +76,9 @@ def test_corpus_s1_alpha_runs_what_we_implement(tmp_path, free_port):
 
     async def scenario():
         async with headless(mission, port, WARP, ["DB_CLIENTS", "PROC_WATCH_SUMMARY"]) as watcher:
-            await async_wait_until(lambda: set(S1_ALPHA_APPS) <= clients(watcher), timeout=8, interval=0.05)
+            await async_wait_until(lambda: set(S1_ALPHA_APPS) <= clients(watcher), timeout=20, interval=0.05)
             # pRealm never connects, so uProcessWatch (watch_all = true) has nothing missing to report
-            await async_wait_until(lambda: latest(watcher, "PROC_WATCH_SUMMARY") == "All Present", timeout=4)
+            await async_wait_until(lambda: latest(watcher, "PROC_WATCH_SUMMARY") == "All Present", timeout=10)
     asyncio.run(scenario())
 
     log = tmp_path / "antler.log"

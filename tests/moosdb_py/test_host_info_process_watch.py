@@ -112,13 +112,13 @@ def test_host_info_and_process_watch_against_a_moosdb(abe_db, tmp_path, free_por
         try:
             # the full record comes once pShare has said where it listens; the broker pings with it
             info = f"community=abe,hostip=10.9.8.7,port_db={abe_db.port},pshare_iroutes=localhost:{udp},timewarp=10"
-            await async_wait_until(lambda: info in values("PHI_HOST_INFO"), timeout=8)
-            await async_wait_until(lambda: any(str(v).startswith(info) for v in values("NODE_BROKER_PING_0")), timeout=8)
+            await async_wait_until(lambda: info in values("PHI_HOST_INFO"), timeout=15)
+            await async_wait_until(lambda: any(str(v).startswith(info) for v in values("NODE_BROKER_PING_0")), timeout=15)
             assert values("PHI_HOST_IP")[-1] == "10.9.8.7" and values("PHI_HOST_PORT_DB")[-1] == str(abe_db.port)
-            await async_wait_until(lambda: "All Present" in values("PROC_WATCH_SUMMARY"), timeout=8)
+            await async_wait_until(lambda: "All Present" in values("PROC_WATCH_SUMMARY"), timeout=15)
             assert values("PROC_WATCH_TIME_WARP") == [float(WARP)]
             share.stop()                                       # pShare goes away: noticed from DB_CLIENTS
-            await async_wait_until(lambda: "AWOL: pShare" in values("PROC_WATCH_SUMMARY"), timeout=8)
+            await async_wait_until(lambda: "AWOL: pShare" in values("PROC_WATCH_SUMMARY"), timeout=15)
             assert "Process [pShare] is noted to be missing." in values("PROC_WATCH_EVENT")
             assert values("UPW_FULL")[-1] == "pShare(1/1),pHostInfo(1/0)"
         finally:
@@ -130,3 +130,16 @@ def test_host_info_and_process_watch_against_a_moosdb(abe_db, tmp_path, free_por
             await watching
 
     asyncio.run(scenario())
+
+
+def test_watch_all_antler_watches_the_run_list(tmp_path):
+    path = tmp_path / "m.moos"
+    path.write_text("ServerPort = 9000\nProcessConfig = ANTLER\n{\n  Run = MOOSDB @ NewConsole = false\n"
+                    "  Run = pHelmIvP @ NewConsole = false\n  Run = uXMS @ NewConsole = false\n"
+                    "  Run = uSimMarine @ NewConsole = false ~ uSim_abe\n  Run = uProcessWatch @ NewConsole = false\n}\n"
+                    "ProcessConfig = uProcessWatch\n{\n  watch_all = antler\n  nowatch = uXMS*\n}\n")
+    app = ProcessWatch(path)
+    app.on_startup()
+    assert list(app.state.watched) == ["pHelmIvP", "uSim_abe"] and not app.state.watch_all
+    app.state.on_clients("pHelmIvP,uProcessWatch,pLogger,")
+    assert app.state.summary() == "AWOL: uSim_abe"     # pLogger is not in the Run list: not watched
