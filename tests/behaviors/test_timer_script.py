@@ -6,12 +6,13 @@ import random
 import re
 
 import pytest
-from helpers import async_wait_until
+from helpers import SHARED, async_wait_until
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from behaviors.logic import parse_condition
 from behaviors.timer_script import Event, RandVar, TimerScript, TimerScriptState, split_fields
+from moosdb_py.antler import expanded_mission
 from moosdb_py.client import MOOSClient
 
 MACROS = {"DBTIME": "12.00", "UTCTIME": "1000.00"}
@@ -138,3 +139,20 @@ def test_timer_script_app_on_the_mission_clock(moosdb_server, tmp_path):
             await watching
 
     asyncio.run(scenario())
+
+
+def test_m2_berta_shoreside_script(tmp_path):
+    """The corpus m2_berta shoreside block (nsplug'd with its launch defaults): loiter centres at
+    180 s and 360 s from randvars redrawn every round, then the script starts over."""
+    folder = SHARED / "missions-corpus" / "m2_berta"
+    defines = {"WARP": "1", "IP_ADDR": "localhost", "MOOS_PORT": "9000", "PSHARE_PORT": "9200",
+               "VNAMES": "abe:ben", "LAUNCH_GUI": "yes"}
+    _, expanded = expanded_mission(folder / "meta_shoreside.moos", defines, {}, tmp_path)
+    app = TimerScript(expanded)
+    app.on_startup()
+    first = app.state.step(180.0, MACROS)
+    assert [var for var, _ in first] == ["UP_LOITER_2", "UP_LOITER_1"]
+    x1, y1 = map(float, first[0][1].removeprefix("center_assign=").split(","))
+    assert 0 <= x1 <= 5 and -80 <= y1 <= -70
+    assert [var for var, _ in app.state.step(180.0, MACROS)] == ["UP_LOITER_1", "UP_LOITER_2"]
+    assert app.state.resets == 1 and app.state.elapsed == 0        # reset_time = end, reset_max = unlimited
