@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import fcntl
 import ipaddress
-import logging
 import socket
 import struct
 from dataclasses import dataclass, fields
@@ -16,7 +15,6 @@ from dataclasses import dataclass, fields
 from .app import MOOSApp
 from .message import MOOSMsg
 
-log = logging.getLogger(__name__)
 
 SIOCGIFADDR = 0x8915   # Linux ioctl: the IPv4 address of an interface
 
