@@ -239,7 +239,7 @@ class Helm:
         else:
             status = "clear"
         self._note_times(loop=perf_counter() - loop_start)
-        out += self._summary(now, functions)
+        out += self._summary(now, functions, halted=status == "BehaviorError")
         out += self._allstop(status)
         self.info.clear_deltas()
         return out
@@ -439,7 +439,7 @@ class Helm:
                         f"btype={bhv.type_name},event=death", ""))
         return out
 
-    def _summary(self, now: float, functions: list[IvPFunction]) -> list[HelmPost]:
+    def _summary(self, now: float, functions: list[IvPFunction], halted: bool) -> list[HelmPost]:
         groups = {"ACTIVE": [], "RUNNING": [], "IDLE": [], "COMPLETED": []}
         for bhv in self.behaviors:
             groups.get(bhv.state.upper(), groups["IDLE"]).append(bhv.name)
@@ -447,7 +447,7 @@ class Helm:
             "ofnum": str(len(functions)),
             "warnings": str(len(self.config_warnings) + len(self.run_warnings)),
             **{k: f"{v:.4f}" for k, v in (self.timing | self.max_timing).items()},
-            "halted": "false",
+            "halted": str(halted).lower(),   # a behaviour posted BHV_ERROR
             "active_goal": "false",
             "modes": "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items())),
             "active_bhvs": ":".join(groups["ACTIVE"]) or "none",

@@ -196,3 +196,12 @@ def test_distance_to_go_macros(domain):
     loop = 20 + 20 + (20 ** 2 + 20 ** 2) ** 0.5              # list length plus the closing gap
     assert expand_macros("$[CYC_DIST_TOGO]", w.macro) == 50.0
     assert expand_macros("$[ALL_DIST_TOGO]", w.macro) == pytest.approx(50 + loop, abs=1e-3)   # one repeat left
+
+
+def test_behavior_error_halts_and_summary_says_so(domain, make_bhv):
+    helm = go_helm(domain, make_bhv, GO.replace("speed = 2", "speed = 2\n  runxflag = BHV_ERROR = go: boom"))
+    log = []
+    run(helm, Boat(), 1.5, log=log)
+    assert [val for _, v, val in log if v == "IVPHELM_ALLSTOP"] == ["BehaviorError"]
+    assert "halted=true" in [val for _, v, val in log if v == "IVPHELM_SUMMARY"][0]
+    assert not any(v == "DESIRED_SPEED" and val > 0 for _, v, val in log)
