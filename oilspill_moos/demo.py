@@ -24,11 +24,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from moosdb_py.client import MOOSClient
+from moosdb_py.ports import free_port
 from moosdb_py.nsplug import preprocess
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line, parse_polygon_spec, parse_report
+from oilspill_moos.path_assign import (
+    OIL_PATH,
+    STARTING_POSITION,
+    STATION_KEEPING,
+    parse_boundary_line,
+    parse_polygon_spec,
+    parse_report,
+)
 from oilspill_moos.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
@@ -45,25 +53,6 @@ def vehicle_names(count: int) -> list[str]:
     if count < 1:
         raise ValueError(f"need at least one vehicle, got {count}")
     return list(NAMES[:count]) if count <= len(NAMES) else [f"v{i:02d}" for i in range(1, count + 1)]
-
-
-_HANDED_OUT: set[tuple[int, int]] = set()
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    """A loopback port free right now for TCP (MOOSDB, boundary server) or UDP (pShare).
-
-    The probe is closed before the app binds, so the kernel may offer the same port again (8 times
-    in 300 draws, measured): a port is never handed out twice by this process, or two MOOSDBs or two
-    pShares of one mission would be given one port.
-    """
-    while True:
-        with socket.socket(socket.AF_INET, kind) as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        if (kind, port) not in _HANDED_OUT:
-            _HANDED_OUT.add((kind, port))
-            return port
 
 
 @dataclass
@@ -214,7 +203,7 @@ class Observer:
     def __post_init__(self):
         self.client = MOOSClient("uDemoObserver", self.host, self.port, on_mail=self.on_mail,
                                  on_connect=self.on_connect, time_warp=self.warp)
-        self.t0: float | None = None
+        self.t0 = self.client.moos_time()  # mission seconds count from here, on every process's warped clock
 
     def on_connect(self) -> None:
         for key in ("OILSPILL_PHASE", "OILSPILL_STATUS", "OILSPILL_BOUNDARY", "VIEW_POLYGON", "NODE_REPORT",
@@ -225,8 +214,6 @@ class Observer:
     def on_mail(self, mail) -> None:
         for msg in mail:
             self.moos_now = max(self.moos_now, msg.time)
-            if self.t0 is None:
-                self.t0 = msg.time
             value = str(msg.value)
             if msg.key == "NODE_REPORT":
                 report = parse_report(value)
@@ -255,12 +242,18 @@ class Observer:
                 self.note(msg.key.split("_")[1].lower(), value, msg.time)
 
     def note(self, kind: str, what: str, moos_time: float | None = None) -> dict:
-        stamp = self.moos_now if moos_time is None else moos_time
-        event = {"event": kind, "what": what, "moos_s": round(stamp - (self.t0 or stamp), 2),
+        """An event stamped `moos_time` (a message's own stamp) or now on the observer's warped clock."""
+        stamp = self.client.moos_time() if moos_time is None else moos_time
+        event = {"event": kind, "what": what, "moos_s": round(stamp - self.t0, 2),
                  "wall_s": round(time.monotonic() - self.started, 2)}
         self.events.append(event)
         print(f"[{event['wall_s']:7.1f} s wall | {event['moos_s']:8.1f} s mission] {kind:<8} {what}", flush=True)
         return event
+
+    def phase_event(self, phase: str, after: int) -> int | None:
+        """Index of the first `phase` change noted after event `after`."""
+        return next((i for i, e in enumerate(self.events) if i > after and e["event"] == "phase"
+                     and e["what"] == phase), None)
 
     def vehicles_seen(self) -> set[str]:
         return set(self.tracks)
@@ -323,6 +316,9 @@ async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, time
             observer.client.close()
             client_task.cancel()
     report["events"] = observer.events
+    problems = timeline_problems(report, observer.client.moos_time() - observer.t0)
+    if problems:
+        raise RuntimeError("the timeline makes no sense: " + "; ".join(problems))
     write_report(out, observer, report)
     return report
 
@@ -331,22 +327,57 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
                     loop_time: float, timeout: float) -> dict:
     """Push one boundary (one line per forecast horizon) and follow the fleet until it has looped
     for `loop_time` mission seconds."""
-    before = {phase: observer.phase_count.get(phase, 0) for phase in (STARTING_POSITION, OIL_PATH)}
+    index = len(observer.events)
+    pushed = observer.note("push", f"boundary {number}: {len(lines)} line(s)")
     for line in lines:
         seq = await pusher.push(line)
-    pushed = observer.note("push", f"boundary {number} ({len(lines)} line(s)) accepted, seq {seq}")
+    observer.note("accepted", f"boundary {number}: OK up to seq {seq}")
     marks = {}
-    for phase in (STARTING_POSITION, OIL_PATH):
-        await wait_for(lambda: observer.phase_count.get(phase, 0) > before[phase], timeout, f"cycle {number}: {phase}",
+    for phase in (STATION_KEEPING, STARTING_POSITION, OIL_PATH):   # each after the one before, in this cycle
+        await wait_for(lambda: observer.phase_event(phase, index) is not None, timeout, f"cycle {number}: {phase}",
                        mission)
-        marks[phase] = observer.events[-1]["moos_s"] if observer.events[-1]["what"] == phase else observer.moos_now
+        index = observer.phase_event(phase, index)
+        marks[phase] = observer.events[index]["moos_s"]
+    horizon = parse_report(observer.status).get("horizon")
     on_loop = observer.moos_now
     await wait_for(lambda: observer.moos_now - on_loop >= loop_time, timeout, f"cycle {number}: looping", mission)
-    observer.note("looping", f"{loop_time:g} s of containment loops")
-    return {"boundary": number, "seq": seq, "pushed_moos_s": pushed["moos_s"],
-            "station_keeping_s": round(marks[STARTING_POSITION] - pushed["moos_s"], 2),
+    looped = observer.note("looping", f"{loop_time:g} s of containment loops")
+    return {"boundary": number, "lines": len(lines), "seq": seq, "horizon_h": horizon,
+            "pushed_moos_s": pushed["moos_s"], **{f"{phase.lower().replace('-', '_')}_moos_s": mark
+                                                  for phase, mark in marks.items()},
+            "looped_moos_s": looped["moos_s"],
+            "station_keeping_s": round(marks[STARTING_POSITION] - marks[STATION_KEEPING], 2),
             "transit_s": round(marks[OIL_PATH] - marks[STARTING_POSITION], 2),
             "push_to_loop_s": round(marks[OIL_PATH] - pushed["moos_s"], 2)}
+
+
+def timeline_problems(report: dict, mission_s: float) -> list[str]:
+    """What is wrong with a timeline: per cycle push <= STATION-KEEPING <= STARTING-POSITION <= OIL-PATH
+    <= end of the loops, each cycle after the one before, every stamp inside the `mission_s` the run
+    lasted, durations that add up; pPathAssign's phase changes in time order."""
+    problems = []
+    end = 0.0
+    for cycle in report["cycles"]:
+        name = f"boundary {cycle['boundary']}"
+        marks = [("push", cycle["pushed_moos_s"]), (STATION_KEEPING, cycle["station_keeping_moos_s"]),
+                 (STARTING_POSITION, cycle["starting_position_moos_s"]), (OIL_PATH, cycle["oil_path_moos_s"]),
+                 ("loops watched", cycle["looped_moos_s"])]
+        for (before, t0), (after, t1) in zip([("previous cycle", end)] + marks, marks):
+            if not t0 <= t1:
+                problems.append(f"{name}: {after} at {t1} s mission comes before {before} at {t0} s")
+        if not 0 <= marks[-1][1] <= mission_s:
+            problems.append(f"{name}: stamp {marks[-1][1]} s outside the run's 0..{mission_s:.0f} s")
+        total = cycle["oil_path_moos_s"] - cycle["pushed_moos_s"]
+        if abs(cycle["push_to_loop_s"] - total) > 0.05 or cycle["station_keeping_s"] + cycle["transit_s"] > total + 0.05:
+            problems.append(f"{name}: durations do not add up: {cycle}")
+        end = marks[-1][1]
+    phases = [e["moos_s"] for e in report["events"] if e["event"] == "phase"]
+    if any(b < a for a, b in zip(phases, phases[1:])):
+        problems.append(f"phase changes out of time order: {phases}")
+    walls = [e["wall_s"] for e in report["events"]]
+    if any(b < a for a, b in zip(walls, walls[1:])):
+        problems.append("wall-clock stamps out of order")
+    return problems
 
 
 def weights_dir(given: Path | None) -> Path:
@@ -362,39 +393,56 @@ def forecaster_ready(weights: Path) -> bool:
     return any(weights.glob("*.pt"))
 
 
-async def forecaster_lines(weights: Path, timeout: float) -> list[bytes]:
-    """Run the forecaster process once (`--once`) against a capturing stand-in for pPathAssign.
+async def forecaster_cycles(weights: Path, timeout: float, cycles: int = 2) -> list[list[bytes]]:
+    """Run the forecaster's operational loop against a capturing stand-in for pPathAssign until it has
+    sent `cycles` forecasts (the replay reveals one more hour of the spill per forecast), then stop it.
 
-    The demo has to know where the forecast lies before it can put the fleet near it; the
-    captured lines (one per horizon) are then pushed to the real pPathAssign unchanged.
+    The demo has to know where the forecast lies before it can put the fleet near it; the captured
+    lines (one per horizon, grouped by the issue time they share) are then pushed to the real
+    pPathAssign unchanged, one forecast per cycle.
     """
-    lines: list[bytes] = []
+    forecasts: dict[float, list[bytes]] = {}
+    done = asyncio.Event()
 
     async def capture(reader, writer):
-        while line := await reader.readline():
-            lines.append(line)
-            writer.write(f"OK {len(lines)}\n".encode())
-            await writer.drain()
+        try:
+            while not done.is_set() and (line := await reader.readline()):
+                boundary = parse_boundary_line(line.decode(), LocalGrid(*ORIGIN))
+                forecasts.setdefault(boundary.issued, []).append(line)
+                writer.write(f"OK {sum(map(len, forecasts.values()))}\n".encode())
+                await writer.drain()
+                sizes = [len(lines) for lines in forecasts.values()]
+                if len(sizes) > cycles or (len(sizes) == cycles and sizes[-1] == sizes[0]):
+                    done.set()
+        except ConnectionError:  # the forecaster stopped mid-line: what came whole is kept
+            pass
         writer.close()
 
     server = await asyncio.start_server(capture, "127.0.0.1", 0)
     port = server.sockets[0].getsockname()[1]
     async with server:
         process = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "oilspill_moos.forecaster", "--once", "--host", "127.0.0.1", "--port", str(port),
-            "--weights", str(weights), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
-        output, _ = await asyncio.wait_for(process.communicate(), timeout)
-    if process.returncode != 0 or not lines:
-        raise RuntimeError(f"forecaster --once failed: {output.decode(errors='replace')[-400:].strip()}")
-    return lines
+            sys.executable, "-m", "oilspill_moos.forecaster", "--interval", "0.2", "--host", "127.0.0.1",
+            "--port", str(port), "--weights", str(weights), stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.STDOUT)
+        ended, captured = asyncio.create_task(process.communicate()), asyncio.create_task(done.wait())
+        await asyncio.wait([ended, captured], timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+        captured.cancel()
+        if process.returncode is None:
+            process.terminate()
+        output, _ = await asyncio.wait_for(ended, timeout)
+    found = [forecasts[issued] for issued in sorted(forecasts)][:cycles]
+    if len(found) < cycles or len(found[-1]) != len(found[0]):
+        raise RuntimeError(f"forecaster sent {len(found)} of {cycles} forecasts: "
+                           f"{output.decode(errors='replace')[-400:].strip()}")
+    return found
 
 
 def boundary_source(weights: Path | None, timeout: float) -> tuple[list[list[bytes]], str]:
-    """Per cycle, the lines to push: the forecaster's (every horizon, pushed twice: the repeat
-    re-plans) when `weights` is given, else the two outlines shipped with the mission."""
+    """Per cycle, the lines to push: two successive forecasts of the forecaster (every horizon,
+    one forecast per cycle) when `weights` is given, else the two outlines shipped with the mission."""
     if weights is not None:
-        lines = asyncio.run(forecaster_lines(weights, timeout))
-        return [lines, lines], f"forecaster (weights in {weights})"
+        return asyncio.run(forecaster_cycles(weights, timeout)), f"forecaster (weights in {weights})"
     return [[line] for line in shipped_boundaries()], SHIPPED_BOUNDARIES.name
 
 

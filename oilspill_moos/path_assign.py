@@ -29,6 +29,7 @@ from oilspill_moos.planner import (
     containment_region,
     plan_containment,
     reshare,
+    transit_route,
 )
 
 IDLE = "IDLE"
@@ -179,6 +180,9 @@ class Settings:
     transit_speed: float = 2.0
     loop_speed: float = 0.0
     min_replan_interval: float = 10.0
+    forecast_window: float = 5.0
+    forecast_horizons: tuple[float, ...] = (3.0, 7.0, 11.0, 15.0)
+    replan_distance: float = 25.0
     heartbeat_interval: float = 5.0
     status_interval: float = 2.0
     fleet: tuple[str, ...] = ()
@@ -200,8 +204,12 @@ class Coordinator:
     cycles: int = 0     # forecast cycles accepted; the horizons of one forecast share one
     vehicles: dict[str, Vehicle] = field(default_factory=dict)
     forecasts: dict[float, Boundary] = field(default_factory=dict)
+    forecast_seq: dict[float, int] = field(default_factory=dict)  # the line (seq) each horizon came in
     forecast_time: float | None = None  # issue time of the forecast in force
     boundary_received: float | None = None
+    window_closes: float = math.inf   # when the horizon is chosen even if not every expected one is in
+    decision: tuple[dict[str, tuple[float, float]], float] | None = None  # positions and age the choice used
+    horizon: float | None = None      # the horizon in force (OILSPILL_BOUNDARY)
     plan: Plan | None = None
     reported: dict[str, tuple[float, float]] = field(default_factory=dict)
     arrived: set[str] = field(default_factory=set)
@@ -211,6 +219,7 @@ class Coordinator:
     _last_heartbeat: float = -math.inf
     _last_status: float = -math.inf
     _last_cycle: float = -math.inf
+    _boundary_seq: int = 0
 
     def __post_init__(self):
         for name in self.settings.fleet:
@@ -219,7 +228,14 @@ class Coordinator:
     # ---- input ---------------------------------------------------------------------------
 
     def offer_boundary(self, boundary: Boundary, now: float) -> int:
-        """Accept a boundary (start a new cycle) or raise BoundaryError; the boundary in force stays on error."""
+        """Accept a boundary line or raise BoundaryError; the boundary in force stays on error.
+
+        A forecast cycle (the lines sharing an issue time, one per horizon) is one decision: its
+        first line halts the fleet, the horizon is chosen once every `forecast_horizons` is in or
+        `forecast_window` has passed (and the positions are in); a line of the cycle arriving after
+        that re-runs the choice on the same inputs and restarts the phases only if the stand-off
+        loop it leads to lies more than `replan_distance` from the loop in force.
+        """
         self._checked_region(boundary)
         issued = boundary.issued
         same_forecast = issued is not None and self.forecast_time is not None \
@@ -232,18 +248,46 @@ class Coordinator:
             if wait > 0:
                 raise BoundaryError(f"boundary flood: the last one is {now - self._last_cycle:.1f} s old, "
                                     f"next accepted in {wait:.1f} s")
-            self.forecasts = {}
+            self.forecasts, self.forecast_seq, self.decision = {}, {}, None
             self.cycles += 1
+            self._last_cycle = now
         self.forecast_time = issued
-        self.forecasts[boundary.horizon_h] = boundary
         self.seq += 1
-        self._last_cycle = now
-        self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(boundary.polygon)}}},label=oilspill_{self.seq}")
+        self.forecasts[boundary.horizon_h] = boundary
+        self.forecast_seq[boundary.horizon_h] = self.seq
         self._post("OILSPILL_FORECAST", format_forecast(boundary, self.cycles))
-        if not (same_forecast and self.phase == STATION_KEEPING):  # another horizon joins the cycle under way
+        if not same_forecast:
             self.boundary_received = now
+            self.window_closes = now if self._collected() else now + self.settings.forecast_window
+            if self._collected():  # a lone line that nothing can join: it is the boundary in force already
+                self._post_boundary(boundary.horizon_h)
             self._begin_station_keeping(now)
+        elif self.decision is None:  # another horizon joins the cycle still collecting
+            if self._collected():
+                self.window_closes = now
+            if self.phase == STATION_KEEPING:
+                self._maybe_plan(now)
+        else:
+            self._reconsider(now)
         return self.seq
+
+    def _collected(self) -> bool:
+        """Nothing more to wait for: a line without a time stands alone, or every expected horizon is in."""
+        return self.forecast_time is None or (
+            bool(self.settings.forecast_horizons) and set(self.settings.forecast_horizons) <= set(self.forecasts))
+
+    def _reconsider(self, now: float) -> None:
+        """A late line of the cycle in force: the choice again on the inputs it was made with."""
+        positions, age_h = self.decision
+        horizon, plan = self._choose(positions, age_h)
+        shift = plan.region.exterior.hausdorff_distance(self.plan.region.exterior)
+        if shift <= self.settings.replan_distance:
+            return
+        self._post("OILSPILL_WARNING", f"late line of forecast cycle {self.cycles} moves the loop by {shift:.0f} m "
+                                       f"(> replan_distance {self.settings.replan_distance:g}): re-planning")
+        self.decision = None
+        self.window_closes = now
+        self._begin_station_keeping(now)
 
     def on_coordinates(self, text: str, now: float, community: str = "") -> None:
         """VEHICLE_COORDINATES="vname=abe,x=..,y=..,utc=..": counts once the current cycle has begun."""
@@ -300,6 +344,8 @@ class Coordinator:
             "arrived": len(self.arrived),
             "dropped": sum(v.dropped for v in self.vehicles.values()),
             "boundaries": self.seq,
+            "cycle": self.cycles,
+            "horizon": -1 if self.horizon is None else fmt_num(self.horizon),
             "boundary_age": -1 if self.boundary_received is None else round(now - self.boundary_received, 1),
         }
 
@@ -321,18 +367,32 @@ class Coordinator:
                 self.coordinate_deadline = now + self.settings.coordinate_timeout
                 self._post("REPORT_COORDINATES_ALL", str(self.seq))
             return
+        if now < self.window_closes:  # more horizons of this forecast may still come
+            return
         if expected <= set(self.reported) or now >= self.coordinate_deadline:
-            self._assign_starts(self._first_plan(now), now)
+            positions = dict(self.reported)
+            self.decision = (positions, (now - self.boundary_received) / 3600.0)  # the wait already used up
+            horizon, plan = self._choose(*self.decision)
+            self._post_boundary(horizon)
+            self._assign_starts(plan, now)
 
-    def _first_plan(self, now: float) -> Plan:
+    def _choose(self, positions: dict[str, tuple[float, float]], age_h: float) -> tuple[float, Plan]:
         """With several horizons of one forecast on offer, aim at the one matching the fleet's arrival."""
         if len(self.forecasts) == 1:
-            (boundary,) = self.forecasts.values()
-            return plan_containment(containment_region(boundary.polygon, self.settings.standoff), self.reported)
-        age_h = (now - self.boundary_received) / 3600.0  # the coordinate wait already used up
-        return choose_forecast({h: b.polygon for h, b in self.forecasts.items()}, self.reported,
-                               {name: self.settings.transit_speed for name in self.reported},
-                               self.settings.standoff, age_h).plan
+            ((horizon, boundary),) = self.forecasts.items()
+            return horizon, plan_containment(containment_region(boundary.polygon, self.settings.standoff), positions)
+        choice = choose_forecast({h: b.polygon for h, b in self.forecasts.items()}, positions,
+                                 {name: self.settings.transit_speed for name in positions},
+                                 self.settings.standoff, age_h)
+        return choice.horizon_h, choice.plan
+
+    def _post_boundary(self, horizon: float) -> None:
+        """OILSPILL_BOUNDARY: the outline the fleet is sent around, posted when it changes."""
+        if self.horizon == horizon and self._boundary_seq == self.forecast_seq[horizon]:
+            return
+        self.horizon, self._boundary_seq = horizon, self.forecast_seq[horizon]
+        self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(self.forecasts[horizon].polygon)}}},"
+                                        f"label=oilspill_{self._boundary_seq}")
 
     def _assign_starts(self, plan: Plan, now: float) -> None:
         self.plan = plan
@@ -342,7 +402,9 @@ class Coordinator:
                                    f"label=standoff,edge_color=orange")
         for name, start in plan.starts.items():
             suffix = name.upper()
-            self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points([start])}")
+            vehicle = self.vehicles[name]
+            route = [start] if vehicle.x is None else transit_route(plan.region, (vehicle.x, vehicle.y), start)
+            self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points(route)}")
             self._post(f"STATION_KEEP_{suffix}", "false")
             self._post(f"OILSPILL_PHASE_{suffix}", STARTING_POSITION)
         for name in plan.starts:  # someone may already be sitting on their point
@@ -461,6 +523,9 @@ ProcessConfig = pPathAssign
   transit_speed       = 2.0         // m/s used to estimate arrival when choosing a forecast horizon
   loop_speed          = 0           // m/s sent with the loops; 0 keeps the vehicles' own setting
   min_replan_interval = 10          // s between accepted boundaries of different forecasts
+  forecast_window     = 5           // s to collect the lines (horizons) of one forecast before choosing
+  forecast_horizons   = 3:7:11:15   // h a forecast brings; once all are in the choice need not wait
+  replan_distance     = 25          // m a late line of the forecast in force must move the loop to re-plan
   heartbeat_interval  = 5           // s between SHORE_HEARTBEAT_ALL posts (vehicle watchdogs)
   status_interval     = 2           // s between OILSPILL_STATUS posts
   operating_area      =             // pts={x,y:...}: boundaries must touch it; empty: use the radius
@@ -475,7 +540,8 @@ SUBSCRIPTIONS:
                                value (if not "true") or the message's community
 
 PUBLICATIONS:
-  OILSPILL_BOUNDARY            pts={...},label=oilspill_<seq>: the boundary in force
+  OILSPILL_BOUNDARY            pts={...},label=oilspill_<seq>: the boundary in force (the horizon
+                               chosen for the fleet; <seq> is the line it came in), posted when it changes
   OILSPILL_FORECAST            every accepted line, for viewers: cycle=<n>,horizon=<h>,
                                [valid=<utc s>,]uncertainty=<m>,source=<name>,pts={x,y:...}
                                (local metres; the horizons of one forecast share the cycle)
@@ -484,14 +550,16 @@ PUBLICATIONS:
   STATION_KEEP_ALL, STATION_KEEP_<V>       true on a new boundary, false when moving on
   OILSPILL_PHASE_ALL, OILSPILL_PHASE_<V>   the phase each vehicle should be in
   REPORT_COORDINATES_ALL, REPORT_COORDINATES_<V>   asks pCoordinates to report
-  STARTING_POSITION_UPDATES_<V>  "points=x,y"
+  STARTING_POSITION_UPDATES_<V>  "points=x,y[:...]": the route to its start (the last point),
+                               around the stand-off loop when the straight line would cross it
   OIL_PATH_UPDATES_<V>         "points=x,y:...#repeat=forever[#speed=..]"
   SHORE_HEARTBEAT_ALL          true every heartbeat_interval (vehicle comms watchdog)
   COMMS_LOST_<V>, DEPLOY_<V>   false / true when a dropped vehicle is heard again
   OILSPILL_DROPPED, OILSPILL_REJOINED   vehicle names
   OILSPILL_STATUS              phase=..,vehicles=a:b,reported=..,planned=..,arrived=..,
-                               dropped=..,boundaries=..,boundary_age=..
-  OILSPILL_WARNING             a refused boundary line or a report that made no sense
+                               dropped=..,boundaries=..,cycle=..,horizon=..,boundary_age=..
+  OILSPILL_WARNING             a refused boundary line, a report that made no sense, an arrival
+                               time-out, a late line of the forecast in force that re-plans
 """
 
     def on_startup(self) -> None:
@@ -506,6 +574,9 @@ PUBLICATIONS:
             transit_speed=config_float(cfg, "transit_speed", 2.0, lo=1e-3),
             loop_speed=config_float(cfg, "loop_speed", 0.0, lo=0),
             min_replan_interval=config_float(cfg, "min_replan_interval", 10.0, lo=0),
+            forecast_window=config_float(cfg, "forecast_window", 5.0, lo=0),
+            forecast_horizons=self._horizons(),
+            replan_distance=config_float(cfg, "replan_distance", 25.0, lo=0),
             heartbeat_interval=config_float(cfg, "heartbeat_interval", 5.0, lo=0.1),
             status_interval=config_float(cfg, "status_interval", 2.0, lo=0.1),
             fleet=fleet,
@@ -514,6 +585,16 @@ PUBLICATIONS:
         lat = self.mission.lat_origin if self.mission is not None else None
         lon = self.mission.long_origin if self.mission is not None else None
         self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
+
+    def _horizons(self) -> tuple[float, ...]:
+        text = config_str(self.config, "forecast_horizons", "3:7:11:15")
+        try:
+            horizons = tuple(float(h) for h in re.split(r"[\s:,]+", text) if h)
+        except ValueError:
+            raise ValueError(f"forecast_horizons: {text!r} is not a list of hours like 3:7:11:15") from None
+        if not all(math.isfinite(h) and h >= 0 for h in horizons):
+            raise ValueError(f"forecast_horizons: {text!r} holds a negative or non-finite hour")
+        return horizons
 
     def _operating_area(self) -> Polygon | None:
         try:

@@ -269,3 +269,60 @@ def choose_forecast(
         arrival = age_h + plan.bottleneck / 3600.0
         choices.append((abs(float(horizon) - arrival), ForecastChoice(float(horizon), arrival, plan)))
     return min(choices, key=lambda item: item[0])[1]
+
+
+def transit_route(region: Polygon, position: Sequence[float], goal: Sequence[float],
+                  tolerance: float = 1e-3) -> list[Point]:
+    """Waypoints from `position` to `goal` (a point on the region's perimeter) that stay out of the region.
+
+    The straight line when it does not enter the region; otherwise the way along the exterior
+    ring, in whichever direction is shorter, pulled taut (each waypoint is the farthest ring
+    point still in plain sight), so the vehicle goes round the spill rather than across it.  A
+    vehicle already inside the region leaves it by the nearest point of the ring first.
+    `tolerance` (metres) is how far a line may graze the region before it counts as entering.
+    """
+    ring = region.exterior
+    here, there = np.asarray(position, dtype=float), np.asarray(goal, dtype=float)
+    inner = region.buffer(-tolerance)
+    if inner.is_empty or not shapely.LineString([here, there]).intersects(inner):
+        return [(float(there[0]), float(there[1]))]
+    inside = inner.contains(shapely.Point(here))
+    entry = ring.project(shapely.Point(here)) if inside else _first_entry(ring, here, there)
+    origin = shapely.get_coordinates(ring.interpolate(entry))[0]
+    target, length = ring.project(shapely.Point(there)), ring.length
+    coords = np.asarray(ring.coords)
+    vertex_arcs = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))[:-1]])
+    routes = []
+    for direction in (1.0, -1.0):
+        span = ((target - entry) * direction) % length
+        ahead = ((vertex_arcs - entry) * direction) % length
+        order = np.argsort(ahead)
+        points = np.vstack([coords[:-1][order[ahead[order] < span]], there])
+        route = _pulled_taut(origin if inside else here, points, inner)
+        routes.append([(float(origin[0]), float(origin[1])), *route] if inside else route)
+    return min(routes, key=lambda route: _route_length(here, route))
+
+
+def _first_entry(ring, here: np.ndarray, there: np.ndarray) -> float:
+    """Arc distance on `ring` where the straight line from `here` to `there` first meets it."""
+    hits = shapely.get_coordinates(shapely.LineString([here, there]).intersection(ring))
+    return ring.project(shapely.Point(hits[np.argmin(np.hypot(*(hits - here).T))]))
+
+
+def _pulled_taut(origin: np.ndarray, points: np.ndarray, inner) -> list[Point]:
+    """From `origin`, jump each time to the farthest of `points` that the straight line reaches clear of `inner`."""
+    route, here, index = [], origin, -1
+    while index < len(points) - 1:
+        candidates = points[index + 1:]
+        clear = ~shapely.intersects(shapely.linestrings(
+            np.stack([np.broadcast_to(here, candidates.shape), candidates], axis=1)), inner)
+        step = int(np.flatnonzero(clear)[-1]) if clear.any() else 0
+        index += step + 1
+        here = points[index]
+        route.append((float(here[0]), float(here[1])))
+    return route
+
+
+def _route_length(position: np.ndarray, route: list[Point]) -> float:
+    path = np.vstack([position, route])
+    return float(np.hypot(*np.diff(path, axis=0).T).sum())

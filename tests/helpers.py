@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from collections.abc import Callable
 from pathlib import Path
 
+from moosdb_py.ports import free_port  # the product's (the demo uses it too); conftest re-exports it
+
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
 CONFORMANCE = SHARED / "conformance"
 
@@ -45,13 +47,6 @@ def conformance_files() -> list[Path]:
 
 def load_capture(path: Path) -> dict:
     return json.loads(path.read_text())
-
-
-def free_port() -> int:
-    """An ephemeral loopback port that is free right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @dataclass

@@ -343,7 +343,7 @@ class Scene:
             return [{"t": "commanded", "name": n, "phase": text} for n in names]
         if key.startswith("STARTING_POSITION_UPDATES"):
             name = _suffix(key, "STARTING_POSITION_UPDATES")
-            self.starts[name] = _points_update(text, key)[0]
+            self.starts[name] = _points_update(text, key)[-1]  # the route's end; the points before go round the spill
             return [{"t": "start", "name": name, "point": self.starts[name]}]
         if key.startswith("OIL_PATH_UPDATES"):
             name = _suffix(key, "OIL_PATH_UPDATES")

@@ -1,9 +1,9 @@
-"""The demo's ports: one mission never gets one port twice (the kernel offers a closed probe's port again)."""
+"""Free ports (moosdb_py.ports, used by the demo and the tests): one mission never gets one port twice (the kernel offers a closed probe's port again)."""
 import socket
 
 import pytest
 
-from oilspill_moos.demo import free_port
+from moosdb_py.ports import free_port
 
 
 @pytest.mark.parametrize("kind", [socket.SOCK_STREAM, socket.SOCK_DGRAM])

@@ -64,7 +64,7 @@ def test_three_vehicles_go_through_every_phase_and_keep_looping(running):
         modes = mode_changes(mission.alog(name))
         order = [modes.index(m) for m in ("ACTIVE:STATION-KEEPING", "ACTIVE:STARTING-POSITION", "ACTIVE:OIL-PATH")]
         assert order == sorted(order), f"{name}: modes in the wrong order: {modes}"
-        start = parse_polygon_spec("pts={" + str(alog.values("STARTING_POSITION_UPDATES")[-1]).split("=", 1)[1] + "}")[0]
+        start = parse_polygon_spec("pts={" + str(alog.values("STARTING_POSITION_UPDATES")[-1]).split("=", 1)[1] + "}")[-1]
         xs, ys = alog.values("NAV_X"), alog.values("NAV_Y")
         closest = min(math.hypot(x - start[0], y - start[1]) for x, y in zip(xs, ys))
         assert closest <= CAPTURE_RADIUS + 1.0, f"{name} came no closer than {closest:.1f} m to its start"

@@ -3,10 +3,12 @@ import json
 import math
 
 import pytest
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.planner import containment_region
 from oilspill_moos.path_assign import (
     OIL_PATH,
     STARTING_POSITION,
@@ -160,7 +162,7 @@ def test_bad_boundaries_leave_the_one_in_force_untouched():
 
 
 def test_horizons_of_one_forecast_are_not_a_flood_and_the_matching_one_is_chosen():
-    c = Coordinator(Settings(fleet=("abe",), standoff=0, transit_speed=1.0))
+    c = Coordinator(Settings(fleet=("abe",), standoff=0, transit_speed=1.0, forecast_horizons=(3, 7)))
     near = tuple((x - 5000, y - 5000) for x, y in SQUARE)  # the 3 h outline, about 1.9 h away
     far = tuple((x + 20000, y + 20000) for x, y in SQUARE)  # the 7 h outline, about 7.8 h away
     issued = 1000.0  # the lines carry their valid time: issue time + horizon, as the forecaster sends them
@@ -395,3 +397,85 @@ def test_example_block_is_a_working_config_with_the_defaults(tmp_path):
         "boundary_host", "boundary_port", "standoff", "coordinate_timeout", "arrival_timeout", "node_timeout",
         "capture_radius", "transit_speed", "loop_speed", "min_replan_interval", "heartbeat_interval",
         "status_interval", "operating_radius"}
+
+
+# ---- one forecast cycle = one decision (several lines, one per horizon) ----------------------
+
+ISSUED = 1000.0
+
+
+def horizon_line(horizon, dx=0.0, dy=0.0):
+    """A line of the forecast issued at ISSUED: the square moved by (dx, dy)."""
+    return Boundary(tuple((x + dx, y + dy) for x, y in SQUARE), time=ISSUED + horizon * 3600, horizon_h=horizon)
+
+
+def test_the_lines_of_one_forecast_are_collected_and_decided_once():
+    c = Coordinator(Settings(fleet=("abe",), standoff=0, transit_speed=1.0, forecast_window=5))
+    c.offer_boundary(horizon_line(3, -5000, -5000), 0.0)    # ~1.9 h away
+    c.on_coordinates("vname=abe,x=0,y=0", 0.2)                # positions in before the other horizons
+    assert c.phase == STATION_KEEPING and c.plan is None     # 7/11/15 h still expected
+    c.offer_boundary(horizon_line(7, 20000, 20000), 0.4)    # ~7.8 h away: the match
+    c.offer_boundary(horizon_line(11, -30000, 0), 0.6)
+    assert c.phase == STATION_KEEPING and posts(c, "OILSPILL_BOUNDARY") == []
+    c.offer_boundary(horizon_line(15, 0, 60000), 0.8)       # the last expected horizon: decide now
+    assert c.phase == STARTING_POSITION and c.horizon == 7
+    assert posts(c, "OILSPILL_PHASE") == [STATION_KEEPING, STARTING_POSITION]
+    assert posts(c, "STATION_KEEP_ALL") == ["true"] and len(posts(c, "OILSPILL_FORECAST")) == 4
+    # the boundary in force is the chosen 7 h outline (line 2), not the last line pushed
+    assert posts(c, "OILSPILL_BOUNDARY") == [f"pts={{{format_points(horizon_line(7, 20000, 20000).polygon)}}},"
+                                             f"label=oilspill_2"]
+    assert c.status(1.0)["horizon"] == "7" and c.status(1.0)["cycle"] == 1
+
+
+def test_the_window_closes_the_collection_when_horizons_are_missing():
+    c = Coordinator(Settings(fleet=("abe",), standoff=0, forecast_window=5))
+    c.offer_boundary(horizon_line(3), 0.0)
+    c.offer_boundary(horizon_line(7, 10, 0), 1.0)
+    c.on_coordinates("vname=abe,x=-100,y=-100", 2.0)
+    c.tick(4.9)
+    assert c.phase == STATION_KEEPING
+    c.tick(5.1)
+    assert c.phase == STARTING_POSITION and len(c.forecasts) == 2
+
+
+def test_a_line_without_time_is_decided_at_once_and_is_the_boundary_in_force():
+    c = Coordinator(Settings(fleet=("abe",), forecast_window=60))
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    assert len(posts(c, "OILSPILL_BOUNDARY")) == 1
+    c.on_coordinates("vname=abe,x=-100,y=-100", 0.5)
+    assert c.phase == STARTING_POSITION and len(posts(c, "OILSPILL_BOUNDARY")) == 1  # not posted twice
+
+
+def test_a_late_line_of_the_cycle_in_force_restarts_only_when_it_moves_the_loop():
+    c = Coordinator(Settings(fleet=("abe",), standoff=0, forecast_window=5, replan_distance=25,
+                             forecast_horizons=(3, 7)))
+    c.offer_boundary(horizon_line(3), 0.0)
+    c.on_coordinates("vname=abe,x=-100,y=-100", 1.0)
+    c.tick(6.0)
+    assert c.phase == STARTING_POSITION and c.horizon == 3
+    c.outbox.clear()
+    c.offer_boundary(horizon_line(3, 10, 0), 20.0)        # the same horizon again, 10 m off: carry on
+    c.offer_boundary(horizon_line(7, 15, 5), 21.0)        # the missing horizon, close by: carry on
+    c.on_reached("abe", 30.0)
+    assert c.phase == OIL_PATH and posts(c, "OILSPILL_PHASE") == [OIL_PATH]
+    assert posts(c, "OILSPILL_BOUNDARY") == [] and len(posts(c, "OILSPILL_FORECAST")) == 2
+    c.offer_boundary(horizon_line(3, 400, 0), 40.0)       # the chosen horizon corrected by 400 m: re-plan
+    assert c.phase == STATION_KEEPING and "moves the loop by" in posts(c, "OILSPILL_WARNING")[0]
+    c.on_coordinates("vname=abe,x=-100,y=-100", 41.0)     # every horizon is in: no window to wait
+    assert c.phase == STARTING_POSITION
+    assert posts(c, "OILSPILL_BOUNDARY")[-1].startswith("pts={400.0,0.0:800.0,0.0")
+    assert c.cycles == 1
+
+
+def test_starting_positions_go_round_the_spill():
+    c = Coordinator(Settings(fleet=("abe", "ben"), standoff=20))
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    for name in ("abe", "ben"):   # side by side south of the spill: one start is on the far side
+        c.on_coordinates(f"vname={name},x=200,y=-100", 1.0)
+    region = containment_region(SQUARE, 20)
+    routes = {name: parse_polygon_spec("pts={" + posts(c, f"STARTING_POSITION_UPDATES_{name.upper()}")[0]
+                                       .partition("=")[2] + "}") for name in ("abe", "ben")}
+    assert any(len(route) > 1 for route in routes.values())  # the straight line would cross
+    for name, route in routes.items():
+        assert route[-1] == pytest.approx(c.plan.starts[name], abs=0.1)
+        assert not shapely.LineString([(200, -100), *route]).intersects(region.buffer(-0.1))

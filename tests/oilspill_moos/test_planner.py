@@ -17,6 +17,7 @@ from oilspill_moos.planner import (
     greedy_assignment,
     plan_containment,
     reshare,
+    transit_route,
 )
 
 coordinate = st.floats(-2000, 2000, allow_nan=False, allow_infinity=False)
@@ -201,3 +202,37 @@ def test_choose_forecast_matches_horizon_to_arrival_time():
     assert stale.horizon_h == 15
     with pytest.raises(PlanError):
         choose_forecast({}, {"abe": (0, 0)}, speeds, standoff=0)
+
+
+def path_of(position, route):
+    return shapely.LineString([tuple(position), *route])
+
+
+def test_transit_route_is_straight_when_clear_and_goes_round_when_not():
+    region = containment_region([(0, 0), (100, 0), (100, 100), (0, 100)], 10)
+    assert transit_route(region, (50, -50), (50, -10)) == [(50.0, -10.0)]
+    route = transit_route(region, (50, -50), (50, 110))   # straight across the spill: round the east side
+    assert len(route) > 1 and route[-1] == pytest.approx((50, 110))
+    assert not path_of((50, -50), route).intersects(region.buffer(-1e-3))
+    assert all(x >= 50 for x, _ in route)
+    # the shorter way round: 110 m up the east side is shorter than going west from x=80
+    assert transit_route(region, (80, -10), (80, 110))[-1] == pytest.approx((80, 110))
+    assert min(x for x, _ in transit_route(region, (80, -10), (80, 110))) >= 80
+    inside = transit_route(region, (50, 95), (50, -10))   # a vehicle inside leaves by the nearest way out
+    assert inside[0] == pytest.approx((50, 110)) and inside[-1] == pytest.approx((50, -10))
+
+
+@settings(max_examples=40, deadline=None)
+@given(spill_polygons(), st.floats(0, 200), point, st.floats(0, 1))
+def test_transit_route_never_enters_the_standoff_polygon(vertices, standoff, position, fraction):
+    region = containment_region(vertices, standoff)
+    here = shapely.Point(position)
+    if region.buffer(-1e-3).contains(here):
+        return   # starts inside: covered by the unit test above
+    goal = tuple(shapely.get_coordinates(region.exterior.interpolate(fraction, normalized=True))[0])
+    route = transit_route(region, position, goal)
+    assert route[-1] == pytest.approx(goal)
+    path = path_of(position, route)
+    assert path.intersection(region.buffer(-1e-2)).length < 1e-6
+    # at most the straight line to where it meets the ring, then the shorter way along the ring
+    assert path.length <= here.distance(shapely.Point(goal)) + region.exterior.length / 2 + 1e-6
