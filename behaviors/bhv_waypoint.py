@@ -38,7 +38,7 @@ class BHV_Waypoint(IvPBehavior):
         self.suffix = ""
         self.dist_prev_var = self.dist_next_var = ""
         self.wptflag_on_start = self.wptflags_posted = self.reset_on_idle = False
-        self.point_start = False
+        self.point_start = self.empty_ok = False
         self.odo_leg = 0.0
         self.odo_last: tuple[float, float] | None = None   # None: pick up from here (fresh run)
         self.efficiency = False
@@ -82,6 +82,7 @@ class BHV_Waypoint(IvPBehavior):
                 self.points = pts
             elif key == "point":
                 self.point_start = low == "start"
+                self.empty_ok = low == "empty"
                 if low in ("start", "empty"):
                     self.set_points(np.zeros((0, 2)))
                 else:
@@ -401,8 +402,11 @@ class BHV_Waypoint(IvPBehavior):
             self.point_start = False
             self.set_points(np.round(np.array([[osx, osy]]), 3))
         if len(self.points) == 0:
-            self.post("BHV_WARNING", f"{self.name}: No waypts given. Set val to empty if intentional")
+            if not self.empty_ok:
+                self.post("BHV_WARNING", f"{self.name}: No waypts given. Set val to empty if intentional")
             return None
+        if len(self.points) == 1 and (self.repeat > 0 or self.endless):
+            self.post("BHV_WARNING", f"{self.name}: cycles/repeats not supported with single waypt")
         if self.prev is None:
             self.prev = (osx, osy)
         if self.lead_start is None:

@@ -205,3 +205,20 @@ def test_behavior_error_halts_and_summary_says_so(domain, make_bhv):
     assert [val for _, v, val in log if v == "IVPHELM_ALLSTOP"] == ["BehaviorError"]
     assert "halted=true" in [val for _, v, val in log if v == "IVPHELM_SUMMARY"][0]
     assert not any(v == "DESIRED_SPEED" and val > 0 for _, v, val in log)
+
+
+@pytest.mark.parametrize("params, warning", [
+    ({}, "w: No waypts given. Set val to empty if intentional"),
+    ({"point": "empty"}, None),
+    ({"point": "5,5", "repeat": "2"}, "w: cycles/repeats not supported with single waypt"),
+    ({"points": "5,5:9,9", "repeat": "forever"}, None),
+])
+def test_waypoint_list_warnings(domain, params, warning):
+    info = InfoBuffer()
+    w = BHV_Waypoint(domain, info, "abe")
+    for k, v in {"name": "w", **params}.items():
+        w.apply(k, v)
+    for var, value in dict(NAV_X=0.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=1.0).items():
+        info.set(var, value, 0.0)
+    w.on_run_state()
+    assert [p.value for p in w.posts if p.var == "BHV_WARNING"] == ([warning] if warning else [])
