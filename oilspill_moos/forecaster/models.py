@@ -208,6 +208,3 @@ class SpillForecaster(nn.Module):
 def build_model(kind: str = "ltc-rk4", **kwargs) -> SpillForecaster:
     return SpillForecaster(ModelConfig(kind=kind, **kwargs))
 
-
-def parameter_count(model: nn.Module) -> int:
-    return sum(p.numel() for p in model.parameters())

@@ -43,7 +43,6 @@ class MapServer:
         self.on_command = on_command
         self.pages: set[ServerConnection] = set()
         self.pending: list[dict] = []
-        self.sent_batches = 0
         self._files = static_files()
         self._server: Server | None = None
 
@@ -113,7 +112,6 @@ class MapServer:
         updates, self.pending = self.pending, []
         if self.pages:
             websockets.broadcast(self.pages, json.dumps({"type": "batch", **clock, "updates": updates}))
-            self.sent_batches += 1
 
     def resend_snapshot(self) -> None:
         self.pending = []
