@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.source import MissionFileError
 
 from .bhv_file import BhvFile, read_bhv
 from .domain import IvPDomain, parse_domain_line
@@ -21,6 +22,17 @@ KNOWN_PARAMS = frozenset({
     "helm_prefix", "ok_skew", "goals_mandatory", "nav_grace", "hold_on_apps", "verbose",
     "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs"})
 NOT_SUPPORTED = frozenset({"standby", "other_override_var"})   # real pHelmIvP keys this helm lacks
+
+
+def parameter_warnings(config) -> list[MissionFileError]:
+    """Each line of a pHelmIvP block that puts the helm in MALCONFIG (str: `file:line: message`)."""
+    out = []
+    for entry in config.entries:
+        if entry.key.lower() in NOT_SUPPORTED:
+            out.append(entry.source.error(f"pHelmIvP parameter '{entry.key}' is not supported by this helm"))
+        elif entry.key.lower() not in KNOWN_PARAMS:
+            out.append(entry.source.error(f"unknown pHelmIvP parameter '{entry.key}'"))
+    return out
 
 
 def _bool(value: str, key: str) -> bool:
@@ -111,11 +123,8 @@ PUBLICATIONS
             raise ValueError(f"nav_grace must be seconds >= 0, got '{cfg.get('nav_grace')}'")
         self.helm.nav_grace = grace
         self.helm.hold_on_apps = [a.strip() for v in cfg.get_all("hold_on_apps") for a in v.split(",") if a.strip()]
-        for entry in self.config.entries:
-            if entry.key.lower() in NOT_SUPPORTED:
-                self.helm.malconfig(f"{entry.source}: pHelmIvP parameter '{entry.key}' is not supported by this helm")
-            elif entry.key.lower() not in KNOWN_PARAMS:
-                self.helm.malconfig(f"{entry.source}: unknown pHelmIvP parameter '{entry.key}'")
+        for warning in parameter_warnings(self.config):
+            self.helm.malconfig(str(warning))
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
             self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
         for warning in self.helm.config_warnings:

@@ -19,6 +19,7 @@ from .behavior import InfoBuffer
 from .bhv_file import BehaviorSpec, parse_bhv
 from .domain import IvPDomain, parse_domain_line
 from .helm import BEHAVIOR_TYPES
+from .helm_app import parameter_warnings
 
 LINT_DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:10:101"),
                               parse_domain_line("depth:0:1000:1001:optional")])
@@ -64,6 +65,8 @@ def lint_moos(path: Path, defines: dict, warnings: list[str] | None = None) -> l
             if not _unresolved(mission.get_global(name) or ""):
                 problems.append(exc)
     helm = mission.process_config("pHelmIvP")
+    if helm is not None:
+        problems += parameter_warnings(helm)     # the helm would sit in MALCONFIG
     for value in helm.get_all("domain") if helm else []:
         if not _unresolved(value):
             try:

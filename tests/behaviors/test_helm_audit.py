@@ -222,3 +222,14 @@ def test_waypoint_list_warnings(domain, params, warning):
         info.set(var, value, 0.0)
     w.on_run_state()
     assert [p.value for p in w.posts if p.var == "BHV_WARNING"] == ([warning] if warning else [])
+
+
+def test_moos_lint_reports_what_would_malconfig_the_helm(tmp_path, capsys):
+    from behaviors.lint import main
+    moos = tmp_path / "m.moos"
+    moos.write_text("LatOrigin = 1\nLongOrigin = 2\nProcessConfig = pHelmIvP\n{\n  behaviors = a.bhv\n"
+                    "  colour = red\n  standby = 5\n}\n")
+    assert main([str(moos)]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        f"{moos}:6: unknown pHelmIvP parameter 'colour'",
+        f"{moos}:7: pHelmIvP parameter 'standby' is not supported by this helm"]
