@@ -390,18 +390,21 @@ PUBLICATIONS:
         # Mail is forwarded as it arrives, not at the next AppTick (the C++ pShare's
         # REGULAR_ITERATE_AND_COMMS_DRIVEN_MAIL): a bridge should add no tick of latency.
         self.client.on_mail = self.on_new_mail
+        # Here, not in on_startup: close_sockets must work after a start-up that failed early.
+        self.listeners: dict[Route, socket.socket] = {}
+        self.sender: socket.socket | None = None
 
     def on_startup(self) -> None:
         cfg = self.config
-        base_port = cfg.get("multicast_base_port") or str(DEFAULT_MULTICAST_BASE_PORT)
+        base_entry = cfg.entry("multicast_base_port")
+        base_port = base_entry.value if base_entry and base_entry.value else str(DEFAULT_MULTICAST_BASE_PORT)
         if not base_port.strip().isdigit():
-            raise ValueError(f"multicast_base_port: '{base_port}' is not a port number")
+            raise base_entry.source.error(f"multicast_base_port: '{base_port}' is not a port number")
         self.table = ShareTable((cfg.get("multicast_address") or DEFAULT_MULTICAST_ADDRESS).strip(),
                                 int(base_port))
         self.counts = dict.fromkeys(("sent", "received", "echo", "malformed", "oversize", "send_errors"), 0)
         self.last_summary: float | None = None
         self.addresses: dict[Route, tuple] = {}
-        self.listeners: dict[Route, socket.socket] = {}
         self.sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sender.setblocking(False)
         self.sender.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
@@ -411,7 +414,7 @@ PUBLICATIONS:
                 try:
                     apply(entry.value, warnings)
                 except (ShareConfigError, OSError) as exc:
-                    raise ValueError(f"{entry.source.file}:{entry.source.line}: {key}: {exc}") from None
+                    raise entry.source.error(f"{key}: {exc}") from None
         for switch in self.command_line:
             flag, _, routes = switch.partition("=")
             apply = self.apply_output if flag in ("-o", "--output") else self.apply_input
@@ -550,7 +553,7 @@ PUBLICATIONS:
                 loop.remove_reader(sock.fileno())
             sock.close()
         self.listeners.clear()
-        if getattr(self, "sender", None) is not None:
+        if self.sender is not None:
             self.sender.close()
 
     def status_fields(self) -> dict:

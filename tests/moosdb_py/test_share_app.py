@@ -140,6 +140,9 @@ def test_bad_config_names_file_and_line(tmp_path):
     app = Share(mission)
     with pytest.raises(ValueError, match=r"bad\.moos:\d+: output: route 'nowhere'"):
         asyncio.run(_startup(app))
+    app = Share(write_mission(tmp_path / "port.moos", "abe", 9000, ["multicast_base_port = 90a0"]))
+    with pytest.raises(ValueError, match=r"port\.moos:\d+: multicast_base_port: '90a0' is not a port number"):
+        asyncio.run(_startup(app))
 
 
 def test_port_in_use_is_a_clear_error(tmp_path):
