@@ -26,7 +26,7 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_float, config_str, format_number, parse_pairs
+from oilspill_moos.app_config import ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params
 from oilspill_moos.geodesy import LocalGrid
 
 
@@ -238,15 +238,19 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
+        read_params(self.config, self._read)
+        self.forecast: Polygon | None = None
+        self._last_report = -math.inf
+
+    def _read(self, cfg) -> None:
         from oilspill_moos.path_assign import BoundaryError, operating_area
 
-        cfg = self.config
         fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
         try:
             area = operating_area(config_str(cfg, "operating_area", ""),
                                   config_float(cfg, "operating_radius", 0.0, lo=0))
         except BoundaryError as exc:
-            raise ValueError(f"operating_area: {exc}") from None
+            raise ConfigValueError("operating_area", str(exc)) from None
         self.collector = ObservationCollector(fleet=fleet, area=area)
         self.max_gap = config_float(cfg, "max_flip_gap", 50.0, lo=0)
         self.report_interval = config_float(cfg, "report_interval", 5.0, lo=0.1)
@@ -257,9 +261,7 @@ PUBLICATIONS:
             self.world = ScenarioMap(LocalGrid(self.mission.lat_origin, self.mission.long_origin),
                                      config_float(cfg, "map_scale", 1.0, lo=1e-6))
         if self.feedback_file is not None and self.world is None:
-            raise ValueError("feedback_file needs LatOrigin and LongOrigin in the mission file")
-        self.forecast: Polygon | None = None
-        self._last_report = -math.inf
+            raise ConfigValueError("feedback_file", "needs LatOrigin and LongOrigin in the mission file")
 
     def on_connect(self) -> None:
         self.register("OIL_OBSERVATION")

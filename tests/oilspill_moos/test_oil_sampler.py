@@ -92,6 +92,13 @@ def test_sensor_config_errors_name_the_parameter(tmp_path):
         make(OilSensor, tmp_path, community="shoreside", false_positive=2)
 
 
+def test_fusion_config_errors_name_file_and_line(tmp_path):
+    with pytest.raises(ValueError, match=r"m\.moos:\d+: report_interval"):
+        make(OilFusion, tmp_path, community="shoreside", report_interval="often")
+    with pytest.raises(ValueError, match=r"m\.moos:\d+: operating_area"):
+        make(OilFusion, tmp_path, community="shoreside", operating_area="0,0:1")
+
+
 def test_sensor_answers_requests_and_jumps_its_clock_on_command(tmp_path):
     sensor = make(OilSensor, tmp_path, community="shoreside", scenario="steady_growth-2111", start_hour=20,
                   map_scale=0.02, sensor_range=15)
