@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .client import MOOSClient
 from .message import MOOSMsg
-from .mission import Mission, ProcessConfig, Where, read_mission
+from .mission import Mission, ProcessConfig, Where, db_address, read_mission
 from .source import MissionFileError
 
 log = logging.getLogger("moosdb_py.app")
@@ -48,10 +48,7 @@ class MOOSApp:
         self.name = name or self.default_name
         self.mission: Mission | None = read_mission(mission_file) if mission_file else None
         self.config: ProcessConfig = self._find_config()
-        mission = self.mission
-        self.time_warp = time_warp or (mission.time_warp if mission else 1.0)
-        host = host or (mission.server_host if mission else "127.0.0.1")
-        port = port or (mission.server_port if mission else 9000)
+        host, port, self.time_warp = db_address(self.mission, host, port, time_warp)
         self.app_tick = self._positive("AppTick", DEFAULT_APP_TICK)
         self.comms_tick = self._positive("CommsTick", DEFAULT_COMMS_TICK)   # read as MOOS does; async comms ignore it
         self.command_key = f"{self.name.upper()}_CMD"

@@ -173,6 +173,14 @@ class Mission(BaseModel):
             getattr(self, name)
 
 
+def db_address(mission: Mission | None, host: str | None = None, port: int | None = None,
+               time_warp: float | None = None) -> tuple[str, int, float]:
+    """(host, port, time warp) of the MOOSDB: the command line over the mission's globals over MOOS's defaults."""
+    if mission is None:
+        return host or "localhost", port or 9000, time_warp or 1.0
+    return host or mission.server_host, port or mission.server_port, time_warp or mission.time_warp
+
+
 def moos_bool(value: str) -> bool:
     """MOOS booleans: `TRUE` in any case, or a number > 0."""
     try:

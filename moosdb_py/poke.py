@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from .app import print_page
 from .client import MOOSClient
 from .message import MOOSMsg
-from .mission import read_mission
+from .mission import db_address, read_mission
 from .source import MissionFileError
 from .xms import Scope, connect, format_table
 
@@ -150,9 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         pokes = [parse_poke(w) for w in words] + (pokes_from_block(mission, args.alias) if args.cache else [])
         if not pokes:
             raise ValueError("nothing to poke: give VAR=value or VAR:=string")
-        host = args.host or (mission.server_host if mission else "localhost")
-        port = args.port or (mission.server_port if mission else 9000)
-        warp = args.time_warp or (mission.time_warp if mission else 1.0)
+        host, port, warp = db_address(mission, args.host, args.port, args.time_warp)
     except (ValueError, MissionFileError) as exc:
         print(f"uPokeDB: {exc}", file=sys.stderr)
         return 1

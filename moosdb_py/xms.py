@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from .app import print_page
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg
-from .mission import Mission, read_mission
+from .mission import Mission, db_address, moos_bool, read_mission
 from .moosdb import wild_match
 from .source import MissionFileError
 
@@ -193,16 +193,14 @@ def options_from(args: argparse.Namespace) -> Options:
         for key, column in (("display_source", "source"), ("display_time", "time"),
                             ("display_community", "community"), ("display_aux_source", "aux")):
             if block.get(key) is not None:
-                (show.add if block.get(key).lower() == "true" else show.discard)(column)
+                (show.add if moos_bool(block.get(key)) else show.discard)(column)
     if args.all:
         names.append("*")
     if history and history not in names:
         names.append(history)
     if not names:
         raise ValueError("nothing to watch: name variables, use --all, or give var = lines in the uXMS block")
-    host = args.host or (mission.server_host if mission else "localhost")
-    port = args.port or (mission.server_port if mission else 9000)
-    warp = args.time_warp or (mission.time_warp if mission else 1.0)
+    host, port, warp = db_address(mission, args.host, args.port, args.time_warp)
     return Options(mission, names, sources, show, history, host, port, warp)
 
 
