@@ -59,6 +59,13 @@ class LocalGrid:
         return f"LocalGrid(lat_origin={self.lat_origin}, long_origin={self.long_origin})"
 
 
+def mission_grid(mission) -> LocalGrid | None:
+    """The mission's local grid, or None when it gives no LatOrigin/LongOrigin."""
+    if mission is None or mission.lat_origin is None or mission.long_origin is None:
+        return None
+    return LocalGrid(mission.lat_origin, mission.long_origin)
+
+
 def _like(template, values):
     """Return a Python float when the caller passed scalars, else an ndarray."""
     if np.ndim(template) == 0:

@@ -24,7 +24,7 @@ from oilspill_moos.app_config import (
     read_params,
     unhandled_entries,
 )
-from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 log = logging.getLogger("oilspill_moos.node_reporter")
 
@@ -355,13 +355,8 @@ PUBLICATIONS:
         params = read_params(self.config, lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input")))
         for warning in unhandled_entries(self.config, REPORTER_CONFIG_KEYS):
             log.warning(warning)
-        grid = None
-        name = "unknown"
-        if self.mission is not None:
-            name = self.mission.community or name
-            if self.mission.lat_origin is not None and self.mission.long_origin is not None:
-                grid = LocalGrid(self.mission.lat_origin, self.mission.long_origin)
-        self.builder = NodeReportBuilder(name, params, grid)
+        name = (self.mission.community if self.mission is not None else "") or "unknown"
+        self.builder = NodeReportBuilder(name, params, mission_grid(self.mission))
 
     def on_connect(self) -> None:
         for key in REPORTER_INPUTS:

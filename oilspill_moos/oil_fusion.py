@@ -27,7 +27,7 @@ from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params
-from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 
 class ObservationRejected(ValueError):
@@ -256,10 +256,8 @@ PUBLICATIONS:
         self.report_interval = config_float(cfg, "report_interval", 5.0, lo=0.1)
         feedback = config_str(cfg, "feedback_file", "")
         self.feedback_file = Path(feedback) if feedback else None
-        self.world = None
-        if self.mission is not None and self.mission.lat_origin is not None and self.mission.long_origin is not None:
-            self.world = ScenarioMap(LocalGrid(self.mission.lat_origin, self.mission.long_origin),
-                                     config_float(cfg, "map_scale", 1.0, lo=1e-6))
+        grid = mission_grid(self.mission)
+        self.world = ScenarioMap(grid, config_float(cfg, "map_scale", 1.0, lo=1e-6)) if grid is not None else None
         if self.feedback_file is not None and self.world is None:
             raise ConfigValueError("feedback_file", "needs LatOrigin and LongOrigin in the mission file")
 

@@ -25,7 +25,7 @@ from oilspill_moos.app_config import (
     read_params,
     unhandled_entries,
 )
-from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.geodesy import mission_grid
 
 log = logging.getLogger("oilspill_moos.sim_marine")
 
@@ -346,10 +346,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
             log.warning(warning)
         self.model = MarineModel(self.params)
         self.water_depth = self.params.water_depth
-        self.grid = None
-        if self.mission is not None and self.mission.lat_origin is not None \
-                and self.mission.long_origin is not None:
-            self.grid = LocalGrid(self.mission.lat_origin, self.mission.long_origin)
+        self.grid = mission_grid(self.mission)
         self.iteration = 0
         self.last_step_time: float | None = None
         self.last_result = StepResult(0.0, self.model.state.heading)

@@ -15,7 +15,7 @@ from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 from oilspill_moos.app_config import config_float, config_str, read_params, unhandled_entries
 from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
-from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.geodesy import LocalGrid, mission_grid
 from oilspill_moos.viewer.model import (
     SUBSCRIPTIONS,
     WILDCARDS,
@@ -69,12 +69,6 @@ def read_settings(config, mission) -> dict:
                                               lo=1, hi=65535)),
             "buttons": (buttons or [parse_button(DEFAULT_BUTTON)]) + [parse_button(RETURN_BUTTON)],
             "actions": actions}
-
-
-def mission_grid(mission) -> LocalGrid | None:
-    if mission is None or mission.lat_origin is None or mission.long_origin is None:
-        return None
-    return LocalGrid(mission.lat_origin, mission.long_origin)
 
 
 def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0,
