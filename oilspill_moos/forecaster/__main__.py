@@ -51,7 +51,7 @@ oilspill-forecaster: interface
           time from a 'time' property or the file name (e.g. slick_20100424T1643.geojson)
   OUTPUT  TCP to pPathAssign (default 127.0.0.1:9100), one UTF-8 line per horizon:
           {"type":"boundary","time":<valid epoch s>,"horizon_h":3|7|11|15,"crs":"EPSG:4326",
-           "polygon":[[lon,lat],...],"uncertainty_m":<1-sigma centroid spread>,"source":"ltc-rk4"}
+           "polygon":[[lon,lat],...],"uncertainty_m":<1-sigma centroid spread>,"source":"ltc-fused"}
   REPLY   OK <seq> | ERR <reason>   (a rejected line is logged; the others still go)
   MOOS    none directly: pPathAssign posts OILSPILL_BOUNDARY and drives the fleet
 """
