@@ -42,6 +42,7 @@ EXAMPLE = """\
 #   --observations DIR          polygon files to watch (default: replay a held-out shipped scenario)
 #   --once                      forecast and push once, then exit
 #   --wind U,V  --current U,V  --sea-temp C   forcing when the files carry none (default: training mean)
+#   --feedback FILE             uFldOilFusion's observations: re-anchor on the fleet's readings (default: none)
 python -m oilspill_moos.forecaster --host 127.0.0.1 --port 9100 --model ltc-fused --interval 60
 """
 
