@@ -19,7 +19,7 @@ from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params
-from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
 
 THICKNESS_CLASSES = ("sheen", "thick")
@@ -132,8 +132,10 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        if self.mission is None or self.mission.lat_origin is None or self.mission.long_origin is None:
-            raise ValueError("needs a mission file with LatOrigin and LongOrigin")
+        self.grid = mission_grid(self.mission)
+        if self.grid is None:
+            where = self.mission.path if self.mission is not None else "no mission file"
+            raise ValueError(f"{where}: needs LatOrigin and LongOrigin (the scenario is placed about them)")
         read_params(self.config, self._read)
         self.answered = self.refused = 0
         self.clock_start: float | None = None
@@ -143,8 +145,7 @@ PUBLICATIONS:
     def _read(self, cfg) -> None:
         from oilspill_moos.forecaster.dataset import load_dataset
 
-        world = ScenarioMap(LocalGrid(self.mission.lat_origin, self.mission.long_origin),
-                            config_float(cfg, "map_scale", 1.0, lo=1e-6))
+        world = ScenarioMap(self.grid, config_float(cfg, "map_scale", 1.0, lo=1e-6))
         wanted = config_str(cfg, "scenario", "steady_growth-2111")
         scenario = next((s for s in load_dataset() if s.scenario_id == wanted), None)
         if scenario is None:

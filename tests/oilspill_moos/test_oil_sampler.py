@@ -90,6 +90,10 @@ def test_sensor_config_errors_name_the_parameter(tmp_path):
         make(OilSensor, tmp_path, community="shoreside", scenario="no-such-spill")
     with pytest.raises(ValueError, match="false_positive"):
         make(OilSensor, tmp_path, community="shoreside", false_positive=2)
+    flat = tmp_path / "flat.moos"
+    flat.write_text("ServerPort = 9000\nCommunity = shoreside\n")
+    with pytest.raises(ValueError, match=r"flat\.moos: needs LatOrigin and LongOrigin"):
+        OilSensor(flat).on_startup()
 
 
 def test_fusion_config_errors_name_file_and_line(tmp_path):
