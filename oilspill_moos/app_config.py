@@ -18,6 +18,7 @@ class ConfigLike(Protocol):
 MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxappticks", "iteratemode", "verbose", "debug"})
 
 TRUE_WORDS = {"true", "yes", "on", "1"}
+FALSE_WORDS = {"false", "no", "off", "0"}
 
 
 class ConfigValueError(ValueError):
@@ -43,7 +44,6 @@ def unhandled_entries(config, known: set[str] | frozenset[str]) -> list[str]:
     """`file:line: key` for each parameter of the block that the app does not use."""
     return [f"{entry.source}: unhandled parameter {entry.key!r}" for entry in getattr(config, "entries", [])
             if entry.key.lower() not in known and entry.key.lower() not in MOOS_APP_KEYS]
-FALSE_WORDS = {"false", "no", "off", "0"}
 
 
 def parse_bool(text: str, what: str) -> bool:
