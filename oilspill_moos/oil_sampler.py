@@ -73,16 +73,17 @@ PUBLICATIONS:
             elif msg.key == "OILSPILL_PHASE":
                 self.phase = str(msg.value).strip().upper()
             elif msg.key == "OIL_SENSOR_REPORT":
-                self._report(str(msg.value))
+                self._report(msg)
 
-    def _report(self, text: str) -> None:
+    def _report(self, msg) -> None:
+        text = str(msg.value)
         try:
             obs = parse_observation(text)
             if obs.vname != self.vname or obs.id not in self.pending:
                 raise ObservationRejected(f"answer to a request this vehicle did not make: {text!r}")
         except ObservationRejected as exc:
             self.refused += 1
-            self.notify("OIL_SAMPLER_WARNING", str(exc))
+            self.notify("OIL_SAMPLER_WARNING", f"{msg.source or '?'}@{msg.community or '?'}: {exc}")
             return
         self.pending.discard(obs.id)
         self.notify("OIL_OBSERVATION", format_observation(obs))

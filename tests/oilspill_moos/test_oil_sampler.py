@@ -57,6 +57,7 @@ def test_sampler_asks_at_its_rate_only_in_its_phases_and_forwards_its_answers(tm
                              ("OIL_SENSOR_REPORT", "vname=abe,id=9,utc=1,x=0,y=0,oil=0")))
     assert sampler.posts[0] == ("OIL_OBSERVATION", "vname=abe,id=2,utc=1275019200.00,x=10,y=-4,oil=1,range=15")
     assert [k for k, _ in sampler.posts[1:]] == ["OIL_SAMPLER_WARNING", "OIL_SAMPLER_WARNING"]
+    assert sampler.posts[1][1].startswith("test@?: answer to a request this vehicle did not make")
     assert sampler.status_fields()["unanswered"] == 1           # request 1 never answered: counted, no wait
 
 
