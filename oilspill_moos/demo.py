@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import shapely
+
 from moosdb_py.client import MOOSClient
 from moosdb_py.ports import free_port
 from moosdb_py.nsplug import preprocess
@@ -294,8 +296,12 @@ def shipped_boundaries() -> list[bytes]:
 async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, timeout: float,
                    cycles: list[list[bytes]], origin: str, starts: list[tuple[float, float]] | None,
                    viewer_port: int | None = None) -> dict:
+    forecast = origin.startswith("forecaster")
+    # forecast outlines are tens of kilometres across: transits of kilometres at the helm's top speed,
+    # and pPathAssign waits for them rather than start the loops without the vehicles
     mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, starts=starts,
-                              operating_radius=0.0 if origin.startswith("forecaster") else 20000.0)
+                              operating_radius=0.0 if forecast else 20000.0,
+                              extra={"TRANSIT_SPEED": "4", "ARRIVAL_TIMEOUT": "3000"} if forecast else {})
     report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": origin, "cycles": []}
     with mission, viewer_beside(mission.folder / mission.shoreside.moos_file, viewer_port):
         observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
@@ -447,12 +453,14 @@ def boundary_source(weights: Path | None, timeout: float) -> tuple[list[list[byt
 
 
 def stations_around(cycles: list[list[bytes]], vehicles: int, standoff: float) -> list[tuple[float, float]]:
-    """Vehicle starts for a forecast tens of kilometres across: evenly round its nearest-horizon
-    stand-off loop, 300 m further out (a fleet already on station around the spill area), so the
-    transits take minutes, not hours."""
+    """Vehicle starts for forecasts tens of kilometres across: evenly round the stand-off loop of every
+    cycle's nearest horizon together, 300 m further out (a fleet already on station around the spill
+    area, outside each stand-off polygon to come), so the transits take minutes, not hours."""
     grid = LocalGrid(*ORIGIN)
-    nearest = min((parse_boundary_line(line.decode(), grid) for line in cycles[0]), key=lambda b: b.horizon_h)
-    ring = containment_region(nearest.polygon, standoff + 300.0).exterior
+    nearest = [min((parse_boundary_line(line.decode(), grid) for line in lines), key=lambda b: b.horizon_h)
+               for lines in cycles]
+    outlines = shapely.union_all([containment_region(b.polygon, 0.0) for b in nearest])
+    ring = containment_region(outlines, standoff + 300.0).exterior
     return [tuple(ring.interpolate(ring.length * (i + 0.5) / vehicles).coords[0]) for i in range(vehicles)]
 
 
@@ -465,13 +473,16 @@ def write_report(out: Path, observer: Observer, report: dict) -> None:
     out.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(8, 8))
     boundaries = list(dict.fromkeys(tuple(poly) for poly in observer.boundaries))  # repeats drawn once
+    horizons = [c.get("horizon_h") for c in report["cycles"]] if len(boundaries) == len(report["cycles"]) else []
+    shades = ("dimgray", "tab:purple", "tab:olive", "tab:cyan")
     for i, poly in enumerate(boundaries):
         xs, ys = zip(*(poly + poly[:1]))
-        ax.fill(xs, ys, color="black", alpha=0.15, label="predicted boundaries" if i == 0 else None)
+        what = f" ({horizons[i]} h forecast)" if horizons else ""
+        ax.fill(xs, ys, color=shades[i % len(shades)], alpha=0.2, label=f"boundary in force {i + 1}{what}")
     for i, poly in enumerate(dict.fromkeys(tuple(poly) for poly in observer.regions)):
         poly = list(poly)
         xs, ys = zip(*(poly + poly[:1]))
-        ax.plot(xs, ys, "--", color="orange", lw=1, label="stand-off loop" if i == 0 else None)
+        ax.plot(xs, ys, "--", color=shades[i % len(shades)], lw=1, label=f"stand-off loop {i + 1}")
     for name, track in sorted(observer.tracks.items()):
         _, xs, ys = zip(*track)
         (line,) = ax.plot(xs, ys, lw=1.2, label=f"{name} track")
@@ -482,8 +493,8 @@ def write_report(out: Path, observer: Observer, report: dict) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x (m east of LongOrigin)")
     ax.set_ylabel("y (m north of LatOrigin)")
-    ax.set_title("oil-spill containment: tracks, boundaries and loops (* = loop start)")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title("oil-spill containment: tracks (o = start), boundaries in force and loops (* = last loop start)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     fig.savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
     plt.close(fig)
     (out / "timeline.json").write_text(json.dumps(report, indent=2))

@@ -346,7 +346,7 @@ def test_arrival_timeout_starts_the_loops_without_the_late_vehicle_blocking():
     assert posts(c, "OIL_PATH_UPDATES_CAL")
 
 
-events = st.lists(st.tuples(st.sampled_from(["coords", "report", "reached", "tick", "boundary"]),
+events = st.lists(st.tuples(st.sampled_from(["coords", "report", "reached", "tick", "boundary", "horizon"]),
                             st.sampled_from(["abe", "ben", "cal", "deb"]),
                             st.floats(-600, 600, allow_nan=False), st.floats(0, 15)), max_size=40)
 
@@ -369,6 +369,10 @@ def test_phase_machine_invariants_under_any_mail_order(sequence):
             c.on_reached(name, now)
         elif kind == "boundary":
             c.offer_boundary(Boundary(tuple((x + coordinate, y) for x, y in SQUARE)), now)
+        elif kind == "horizon":   # a line of one timed forecast: joins, waits, or arrives late
+            hours = {"abe": 3, "ben": 7, "cal": 11, "deb": 15}[name]
+            c.offer_boundary(Boundary(tuple((x + coordinate, y) for x, y in SQUARE), time=5000.0 + 3600 * hours,
+                                      horizon_h=hours), now)
         c.tick(now)
         if c.phase in (STARTING_POSITION, OIL_PATH):
             dropped = [v for v in c.plan.starts if c.vehicles[v].dropped]
