@@ -284,6 +284,7 @@ def transit_route(region: Polygon, position: Sequence[float], goal: Sequence[flo
     ring = region.exterior
     here, there = np.asarray(position, dtype=float), np.asarray(goal, dtype=float)
     inner = region.buffer(-tolerance)
+    shapely.prepare(inner)  # tested against many lines below
     if inner.is_empty or not shapely.LineString([here, there]).intersects(inner):
         return [(float(there[0]), float(there[1]))]
     inside = inner.contains(shapely.Point(here))
