@@ -82,6 +82,11 @@ class MOOSMsg:
         return self.string
 
     @property
+    def sender(self) -> str:
+        """`source@community` ('?' for an unknown part): whom an error about this mail names."""
+        return f"{self.source or '?'}@{self.community or '?'}"
+
+    @property
     def sval_bytes(self) -> bytes:
         """The raw sval field."""
         return self.binary if self.data_type == BINARY else self.string.encode("latin-1")

@@ -276,7 +276,7 @@ PUBLICATIONS:
                     if self.collector.offer(obs):
                         accepted.append(obs)
                 except ObservationRejected as exc:
-                    self.notify("OIL_FUSION_WARNING", f"{msg.source or '?'}@{msg.community or '?'}: {exc}")
+                    self.notify("OIL_FUSION_WARNING", f"{msg.sender}: {exc}")
         if accepted and self.feedback_file is not None:
             self._write_feedback(accepted)
 

@@ -83,7 +83,7 @@ PUBLICATIONS:
                 raise ObservationRejected(f"answer to a request this vehicle did not make: {text!r}")
         except ObservationRejected as exc:
             self.refused += 1
-            self.notify("OIL_SAMPLER_WARNING", f"{msg.source or '?'}@{msg.community or '?'}: {exc}")
+            self.notify("OIL_SAMPLER_WARNING", f"{msg.sender}: {exc}")
             return
         self.pending.discard(obs.id)
         self.notify("OIL_OBSERVATION", format_observation(obs))

@@ -179,7 +179,7 @@ PUBLICATIONS:
                 vname, ident, x, y = parse_request(str(msg.value))
             except ValueError as exc:
                 self.refused += 1
-                self.notify("OIL_SENSOR_WARNING", f"{msg.source or '?'}@{msg.community or '?'}: {exc}")
+                self.notify("OIL_SENSOR_WARNING", f"{msg.sender}: {exc}")
                 continue
             hour = self.hour()
             oil, thickness = self.sensor.sense(self.truth.at(hour), x, y)

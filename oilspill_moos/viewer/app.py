@@ -173,8 +173,7 @@ PUBLICATIONS:
             try:
                 self.server.queue(self.scene.apply(msg.key, msg.value, msg.time, msg.community))
             except ViewError as exc:
-                where = f"{msg.source or '?'}@{msg.community or '?'}"
-                self.server.queue([self.scene.note("error", f"{msg.key} from {where}: {exc}", msg.time)])
+                self.server.queue([self.scene.note("error", f"{msg.key} from {msg.sender}: {exc}", msg.time)])
 
     def snapshot(self) -> dict:
         return {**self.setup, **self.scene.snapshot(), "time": self.moos_time()}
