@@ -131,8 +131,12 @@ def parse_alog_line(text: str, line: int = 0, path: Path | str = "<alog>", marke
     who, _, community = match.group(3).partition("@")
     source, _, aux = who.partition(":")
     value: float | str = raw
-    if marked and raw[:2] in ("D:", "S:"):
-        value = float(raw[2:]) if raw.startswith("D:") else raw[2:]
+    if marked and raw.startswith("D:"):
+        value = _number(raw[2:])
+        if value is None:
+            raise AlogFormatError(path, line, f"'{raw}' is marked a double but is not a number")
+    elif marked and raw.startswith("S:"):
+        value = raw[2:]
     elif not marked and "\n" not in raw:
         number = _number(raw)
         value = raw if number is None else number

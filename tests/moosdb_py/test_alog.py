@@ -85,6 +85,7 @@ def test_reads_a_moos_ivp_style_file(tmp_path):
     ("%% LOGSTART 1\nabc VAR src 1 \n", r"bad.alog:2: time 'abc' is not a number"),
     ("%% LOGSTART soon\n", r"bad.alog:1: LOGSTART 'soon'"),
     ("1.0 VAR src 1\n", r"bad.alog:0: no %% LOGSTART"),
+    ("%% LOGSTART 1\n%% DATATYPE MARKING ON\n1.0 VAR src D:abc \n", r"bad.alog:3: 'D:abc' is marked a double"),
 ])
 def test_malformed_files(tmp_path, text, message):
     path = tmp_path / "bad.alog"
