@@ -195,8 +195,11 @@ class MOOSApp:
         return f"Usage: {cls.default_name} [mission.moos] [alias] [options]\n\n{doc}\n\n{USAGE_OPTIONS}\n"
 
     @classmethod
-    def main(cls, argv: list[str] | None = None) -> int:
-        """`APP [mission.moos] [alias] [--alias=N] [--moos_host=H] [--moos_port=P] [--help|--example|--interface]`"""
+    def main(cls, argv: list[str] | None = None, **settings) -> int:
+        """`APP [mission.moos] [alias] [--alias=N] [--moos_host=H] [--moos_port=P] [--help|--example|--interface]`
+
+        `settings` become attributes of the app before it runs: how a subclass's `main` hands on
+        the command-line options of its own that it took out of `argv`."""
         argv = sys.argv[1:] if argv is None else list(argv)
         pages = {"--help": cls.usage, "-h": cls.usage, "--example": lambda: cls.example_config,
                  "-e": lambda: cls.example_config, "--interface": lambda: cls.interface, "-i": lambda: cls.interface}
@@ -224,6 +227,8 @@ class MOOSApp:
             app = cls(mission, name, host=options.get("moos_host") or None,
                       port=int(options["moos_port"]) if options.get("moos_port") else None,
                       time_warp=float(options["moos_time_warp"]) if options.get("moos_time_warp") else None)
+            for key, value in settings.items():
+                setattr(app, key, value)
             app.run()
         except (MissionFileError, ValueError, OSError, ConnectionError) as exc:
             print(f"{name or cls.default_name}: {exc}", file=sys.stderr)

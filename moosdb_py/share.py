@@ -380,10 +380,7 @@ PUBLICATIONS:
         """The MOOS command line, plus pShare's `-o=X->Y:host:port,...` and `-i=host:port,...` routes."""
         argv = sys.argv[1:] if argv is None else list(argv)
         switches = tuple(a for a in argv if a.partition("=")[0] in ("-o", "-i", "--output", "--input"))
-        if not switches:
-            return super().main(argv)
-        with_routes = type(cls.__name__, (cls,), {"command_line": switches, "__doc__": cls.__doc__})
-        return super(Share, with_routes).main([a for a in argv if a not in switches])
+        return super().main([a for a in argv if a not in switches], command_line=switches)
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)

@@ -238,8 +238,7 @@ PUBLICATIONS:
             return 1
         if "--replay" in extra and not pages & set(rest):
             return replay_main(Path(extra["--replay"]), rest, port)
-        app_class = cls if port is None else type(cls.__name__, (cls,), {"http_port_option": port})
-        return MOOSApp.main.__func__(app_class, rest)
+        return super().main(rest, http_port_option=port)
 
 
 class Replay:
