@@ -119,6 +119,10 @@ def summary_modes(summary: str) -> str | None:
     return None
 
 
+NAV_FIELDS = {"NAV_X": "x", "NAV_Y": "y", "NAV_LAT": "lat", "NAV_LONG": "lon", "NAV_SPEED": "spd",
+              "NAV_HEADING": "hdg", "NAV_DEPTH": "dep"}
+
+
 class NodeReportBuilder:
     """Keeps what pNodeReporter has heard and writes the report strings."""
 
@@ -148,6 +152,7 @@ class NodeReportBuilder:
         self.plat_values: dict[str, str] = {}
         self._plat_changed: set[str] = set()
         self._plat_last_post: dict[str, float] = {}
+        self._plat_vars = frozenset(item.var for item in params.plat_report_inputs)   # checked on every mail
 
     # ---- input ---------------------------------------------------------------------------
     def on_mail(self, key: str, value, time: float) -> None:
@@ -156,17 +161,16 @@ class NodeReportBuilder:
             self._on_double(key, float(value), time)
         elif isinstance(value, str):
             self._on_string(key, value, time)
-        if key in {item.var for item in self.params.plat_report_inputs}:
+        if key in self._plat_vars:
             text = format_number(value, 6) if isinstance(value, (int, float)) else str(value)
             if self.plat_values.get(key) != text:
                 self.plat_values[key] = text
                 self._plat_changed.add(key)
 
     def _on_double(self, key: str, value: float, time: float) -> None:
-        nav_keys = {"NAV_X": "x", "NAV_Y": "y", "NAV_LAT": "lat", "NAV_LONG": "lon", "NAV_SPEED": "spd",
-                    "NAV_HEADING": "hdg", "NAV_DEPTH": "dep"}
-        if key in nav_keys:
-            self.nav[nav_keys[key]] = value
+        field = NAV_FIELDS.get(key)
+        if field is not None:
+            self.nav[field] = value
             if key in ("NAV_X", "NAV_Y"):
                 self.xy_time = time
             elif key in ("NAV_LAT", "NAV_LONG"):
