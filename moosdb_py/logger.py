@@ -223,6 +223,7 @@ PUBLICATIONS:
         for line in self.settings.unhandled:
             log.warning("%s", line)
         self.monitored = {r.var for r in self.settings.logs if r.monitor}
+        self._wanted: dict[str, bool] = {}   # settings.wanted per variable: asked once, not for every message
         self.lines_written = 0
         self.excluded = 0
         self._open_files()
@@ -267,7 +268,10 @@ PUBLICATIONS:
                 self._command(msg.string)
             if msg.key in self.monitored:
                 print(f"{self.name}: {msg.key} = {msg.value!r} (from {msg.source})", flush=True)
-            if self.settings.wanted(msg.key):
+            wanted = self._wanted.get(msg.key)
+            if wanted is None:
+                wanted = self._wanted[msg.key] = self.settings.wanted(msg.key)
+            if wanted:
                 if self.alog is not None:
                     self.alog.write(msg)
                     self.lines_written += 1
