@@ -6,6 +6,7 @@ wins) or a plain dict, which keeps the vehicle models testable without a mission
 """
 from __future__ import annotations
 
+import logging
 import math
 from typing import Protocol
 
@@ -13,6 +14,8 @@ from typing import Protocol
 class ConfigLike(Protocol):
     def get(self, key: str, default=None): ...
 
+
+log = logging.getLogger("oilspill_moos.app_config")
 
 # Parameters every MOOS app's block may hold; they are read by the MOOSApp base.
 MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxappticks", "iteratemode", "verbose", "debug"})
@@ -44,6 +47,12 @@ def unhandled_entries(config, known: set[str] | frozenset[str]) -> list[str]:
     """`file:line: key` for each parameter of the block that the app does not use."""
     return [f"{entry.source}: unhandled parameter {entry.key!r}" for entry in getattr(config, "entries", [])
             if entry.key.lower() not in known and entry.key.lower() not in MOOS_APP_KEYS]
+
+
+def warn_unhandled(config, known: set[str] | frozenset[str]) -> None:
+    """Log every unused parameter of the block: a misspelt key would otherwise fall back to its default unseen."""
+    for warning in unhandled_entries(config, known):
+        log.warning("%s", warning)
 
 
 def parse_bool(text: str, what: str) -> bool:

@@ -8,7 +8,7 @@ navigation solution is known.
 from __future__ import annotations
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_str
+from oilspill_moos.app_config import config_str, warn_unhandled
 
 
 def coordinates_report(vname: str, x: float, y: float, utc: float) -> str:
@@ -44,6 +44,7 @@ PUBLICATIONS:
     def on_startup(self) -> None:
         community = self.mission.community if self.mission is not None else ""
         self.vname = config_str(self.config, "vname", community or self.name).lower()
+        warn_unhandled(self.config, {"vname"})
         self.nav_x: float | None = None
         self.nav_y: float | None = None
         self.station_keeping = False

@@ -11,7 +11,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigLike, config_bool, config_float, read_params, unhandled_entries
+from oilspill_moos.app_config import ConfigLike, config_bool, config_float, read_params, warn_unhandled
 
 log = logging.getLogger("oilspill_moos.marine_pid")
 
@@ -256,8 +256,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         self.params = read_params(self.config, PIDParams.from_config)
-        for warning in unhandled_entries(self.config, PID_CONFIG_KEYS):
-            log.warning(warning)
+        warn_unhandled(self.config, PID_CONFIG_KEYS)
         self.engine = PIDEngine(self.params)
         self.overridden = True
         self.values: dict[str, float] = {}

@@ -6,7 +6,6 @@ field order and number formatting follow field-apps.md section 3 to the byte.
 """
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass, field
 
@@ -22,11 +21,9 @@ from oilspill_moos.app_config import (
     format_number,
     parse_float,
     read_params,
-    unhandled_entries,
+    warn_unhandled,
 )
 from oilspill_moos.geodesy import LocalGrid, mission_grid
-
-log = logging.getLogger("oilspill_moos.node_reporter")
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
 
@@ -357,8 +354,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         params = read_params(self.config, lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input")))
-        for warning in unhandled_entries(self.config, REPORTER_CONFIG_KEYS):
-            log.warning(warning)
+        warn_unhandled(self.config, REPORTER_CONFIG_KEYS)
         name = (self.mission.community if self.mission is not None else "") or "unknown"
         self.builder = NodeReportBuilder(name, params, mission_grid(self.mission))
 

@@ -26,7 +26,8 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params
+from oilspill_moos.app_config import (ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params,
+                                      warn_unhandled)
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 
@@ -239,6 +240,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         read_params(self.config, self._read)
+        warn_unhandled(self.config, FUSION_CONFIG_KEYS)
         self.forecast: Polygon | None = None
         self._last_report = -math.inf
 
@@ -323,5 +325,8 @@ PUBLICATIONS:
         return {"cycle": self.collector.cycle or "-", "observations": len(self.collector.observations),
                 "rejected": sum(self.collector.rejected.values()), "duplicates": self.collector.duplicates}
 
+
+FUSION_CONFIG_KEYS = frozenset({
+    "fleet", "operating_area", "operating_radius", "max_flip_gap", "report_interval", "feedback_file", "map_scale"})
 
 main = OilFusion.main

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_float, config_str, read_params
+from oilspill_moos.app_config import config_float, config_str, read_params, warn_unhandled
 from oilspill_moos.oil_fusion import ObservationRejected, format_observation, parse_observation
 
 SUBSCRIPTIONS = ("NAV_X", "NAV_Y", "OILSPILL_PHASE", "OIL_SENSOR_REPORT")
@@ -48,6 +48,7 @@ PUBLICATIONS:
     def on_startup(self) -> None:
         community = self.mission.community if self.mission is not None else ""
         read_params(self.config, self._read)
+        warn_unhandled(self.config, SAMPLER_CONFIG_KEYS)
         self.vname = config_str(self.config, "vname", community or self.name).lower()
         self.nav_x = self.nav_y = None
         self.phase = ""
@@ -105,5 +106,7 @@ PUBLICATIONS:
         return {"requested": self.next_id - 1, "reported": self.reported, "unanswered": len(self.pending),
                 "refused": self.refused, "phase": self.phase or "-"}
 
+
+SAMPLER_CONFIG_KEYS = frozenset({"vname", "sample_interval", "sample_phases"})
 
 main = OilSampler.main

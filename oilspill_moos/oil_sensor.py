@@ -18,7 +18,7 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params
+from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params, warn_unhandled
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
 
@@ -137,6 +137,7 @@ PUBLICATIONS:
             where = self.mission.path if self.mission is not None else "no mission file"
             raise ValueError(f"{where}: needs LatOrigin and LongOrigin (the scenario is placed about them)")
         read_params(self.config, self._read)
+        warn_unhandled(self.config, SENSOR_CONFIG_KEYS)
         self.answered = self.refused = 0
         self.clock_start: float | None = None
         self._last_truth_post = -math.inf
@@ -211,5 +212,9 @@ PUBLICATIONS:
     def status_fields(self) -> dict:
         return {"answered": self.answered, "refused": self.refused, "hour": f"{self.hour():.2f}"}
 
+
+SENSOR_CONFIG_KEYS = frozenset({
+    "scenario", "map_scale", "start_hour", "time_scale", "truth_interval", "sensor_range", "false_positive",
+    "false_negative", "thickness_depth", "seed"})
 
 main = OilSensor.main

@@ -23,7 +23,7 @@ from oilspill_moos.app_config import (
     parse_bool,
     parse_float,
     read_params,
-    unhandled_entries,
+    warn_unhandled,
 )
 from oilspill_moos.geodesy import mission_grid
 
@@ -342,8 +342,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
 
     def on_startup(self) -> None:
         self.params = read_params(self.config, SimParams.from_config)
-        for warning in unhandled_entries(self.config, SIM_CONFIG_KEYS):
-            log.warning(warning)
+        warn_unhandled(self.config, SIM_CONFIG_KEYS)
         self.model = MarineModel(self.params)
         self.water_depth = self.params.water_depth
         self.grid = mission_grid(self.mission)

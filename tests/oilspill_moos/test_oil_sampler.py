@@ -104,6 +104,13 @@ def test_fusion_config_errors_name_file_and_line(tmp_path):
         make(OilFusion, tmp_path, community="shoreside", operating_area="0,0:1")
 
 
+def test_feedback_apps_warn_of_unhandled_parameters(tmp_path, caplog):
+    for cls, community in ((OilSampler, "abe"), (OilSensor, "shoreside"), (OilFusion, "shoreside")):
+        make(cls, tmp_path, community=community, sample_intervl=5)
+        assert "m.moos:9: unhandled parameter 'sample_intervl'" in caplog.text, cls.default_name
+        caplog.clear()
+
+
 def test_sensor_answers_requests_and_jumps_its_clock_on_command(tmp_path):
     sensor = make(OilSensor, tmp_path, community="shoreside", scenario="steady_growth-2111", start_hour=20,
                   map_scale=0.02, sensor_range=15)
