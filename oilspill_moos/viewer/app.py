@@ -13,7 +13,7 @@ from moosdb_py.alog import AlogFormatError, iter_alog
 from moosdb_py.app import MOOSApp
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
-from oilspill_moos.app_config import config_float, config_str, read_params, unhandled_entries
+from oilspill_moos.app_config import config_float, config_str, read_params, warn_unhandled
 from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 from oilspill_moos.viewer.model import (
@@ -154,8 +154,7 @@ PUBLICATIONS:
         if getattr(self, "scene", None) is not None:
             return
         self.settings = read_params(self.config, lambda cfg: read_settings(cfg, self.mission))
-        for warning in unhandled_entries(self.config, KNOWN):
-            print(f"{self.name}: {warning}", file=sys.stderr)
+        warn_unhandled(self.config, KNOWN)
         self.buttons: list[Button] = self.settings["buttons"]
         self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
         self.actions: list[Button] = self.settings["actions"]
