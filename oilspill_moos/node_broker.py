@@ -278,7 +278,7 @@ class BrokerApp(MOOSApp):
             try:
                 self.post(getattr(self, method)(msg) or [])
             except ValueError as exc:
-                log.warning("%s: %s from %s@%s dropped: %s", self.name, msg.key, msg.source, msg.community, exc)
+                log.warning("%s: %s from %s dropped: %s", self.name, msg.key, msg.sender, exc)
         self.report_warnings()
 
     def iterate(self) -> None:

@@ -668,7 +668,7 @@ PUBLICATIONS:
                 elif msg.key.startswith("REACHED_STARTING_POSITION"):
                     self.coordinator.on_reached(_arrival_name(msg), now)
             except ValueError as exc:
-                self.notify("OILSPILL_WARNING", f"{msg.key} from {msg.source or '?'}@{msg.community or '?'}: {exc}")
+                self.notify("OILSPILL_WARNING", f"{msg.key} from {msg.sender}: {exc}")
         self._flush()
 
     def iterate(self) -> None:
