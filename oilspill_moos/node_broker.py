@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from moosdb_py.app import MOOSApp
 from moosdb_py.host_info import HostRecord, format_warp, iroutes_from_summary
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.app_config import config_bool, parse_pairs, unhandled_entries
+from oilspill_moos.app_config import config_bool, parse_pairs, warn_unhandled
 
 log = logging.getLogger(__name__)
 
@@ -259,8 +259,7 @@ class BrokerApp(MOOSApp):
     config_keys: frozenset[str] = frozenset()
 
     def read_common(self) -> None:
-        for warning in unhandled_entries(self.config, self.config_keys):
-            log.warning("%s: %s", self.name, warning)
+        warn_unhandled(self.config, self.config_keys)
         community = self.mission.community if self.mission else "#1"
         self.hostip = (self.config.get("hostip") or (self.mission.server_host if self.mission else "localhost")).strip()
         self.port_db = self.mission.server_port if self.mission else 9000

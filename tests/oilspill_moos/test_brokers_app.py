@@ -31,7 +31,7 @@ class LossyRelay(asyncio.DatagramProtocol):
     def connection_made(self, transport):
         self.transport = transport
 
-    def datagram_received(self, data, addr):
+    def datagram_received(self, data, _addr):
         self.seen += 1
         if self.lossy and self.seen % 2 == 1:  # the first one, the third, ...
             self.dropped += 1
@@ -124,3 +124,12 @@ def test_handshake_over_a_lossy_link_then_bridges(tmp_path, caplog):
     finally:
         shore_db.stop()
         abe_db.stop()
+
+
+def test_a_misspelt_parameter_is_named_with_its_place(tmp_path, caplog):
+    path = mission(tmp_path / "abe.moos", "abe", 9000, free_udp_port(),
+                   "ProcessConfig = uFldNodeBroker\n{\n  try_shore_hots = pshare_route=localhost:9200\n}\n")
+    broker = NodeBroker(path)
+    with caplog.at_level(logging.WARNING):
+        broker.on_startup()
+    assert f"{path}:14: unhandled parameter 'try_shore_hots'" in caplog.text
