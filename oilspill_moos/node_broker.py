@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from moosdb_py.app import MOOSApp
 from moosdb_py.host_info import HostRecord, format_warp, iroutes_from_summary
 from moosdb_py.message import MOOSMsg
+from moosdb_py.mission import db_address
 from oilspill_moos.app_config import config_bool, parse_pairs, warn_unhandled
 
 log = logging.getLogger(__name__)
@@ -261,8 +262,8 @@ class BrokerApp(MOOSApp):
     def read_common(self) -> None:
         warn_unhandled(self.config, self.config_keys)
         community = self.mission.community if self.mission else "#1"
-        self.hostip = (self.config.get("hostip") or (self.mission.server_host if self.mission else "localhost")).strip()
-        self.port_db = self.mission.server_port if self.mission else 9000
+        server_host, self.port_db, _ = db_address(self.mission)
+        self.hostip = (self.config.get("hostip") or server_host).strip()
         self.community = community
 
     def on_connect(self) -> None:
