@@ -28,6 +28,7 @@ DEFAULT_COMMS_TICK = 5.0
 STATUS_PERIOD = 2.0
 USAGE_OPTIONS = """\
 Options:
+  --moos_file=FILE                 mission file (instead of the first positional argument)
   --alias=NAME, --moos_name=NAME   MOOS name (and ProcessConfig block) to use
   --moos_host=HOST                 DB host (default: ServerHost, else 127.0.0.1)
   --moos_port=PORT                 DB port (default: ServerPort, else 9000)

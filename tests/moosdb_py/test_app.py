@@ -100,6 +100,7 @@ def test_command_line_pages(capsys):
     assert Counter.main(["--help"]) == 0
     out = capsys.readouterr().out
     assert "Usage: pCounter [mission.moos] [alias]" in out and "starts again on COUNTER_RESET" in out
+    assert "--moos_file=FILE" in out
     assert Counter.main(["--example"]) == 0
     assert capsys.readouterr().out.startswith("ProcessConfig = pCounter\n{\n  AppTick = 5")
     assert Counter.main(["x.moos", "--interface"]) == 0
@@ -112,6 +113,8 @@ def test_bad_configuration_is_reported_with_its_place(tmp_path, capsys):
     assert f"{mission}:7: AppTick = 'fast' is not a positive number" in capsys.readouterr().err
     mission = _mission(tmp_path, 9, body="step = -1")
     assert Counter.main([str(mission), "--alias=counter2"]) == 1
+    assert "step = -1 must be positive" in capsys.readouterr().err
+    assert Counter.main([f"--moos_file={mission}", "--alias=counter2"]) == 1
     assert "step = -1 must be positive" in capsys.readouterr().err
     assert Counter.main(["--bogus"]) == 1
     assert "unknown arguments ['bogus']" in capsys.readouterr().err
