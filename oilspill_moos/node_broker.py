@@ -311,8 +311,9 @@ class NodeBroker(BrokerApp):
     to bridge the configured variables (NODE_REPORT_LOCAL -> NODE_REPORT, ...) to that shore.
 
     Usage: uFldNodeBroker mission.moos [alias]  (reads its ProcessConfig block)
-    The host record in the pings comes from PHI_HOST_INFO if a pHostInfo runs, otherwise from the
-    mission (Community, ServerHost, ServerPort, MOOSTimeWarp) and pShare's PSHARE_INPUT_SUMMARY.
+    The host record in the pings is pHostInfo's PHI_HOST_INFO once a complete one arrives; until then
+    it is built from the mission (Community, ServerHost, ServerPort, MOOSTimeWarp) and pShare's
+    PSHARE_INPUT_SUMMARY.
     """
 
     default_name = "uFldNodeBroker"
@@ -339,7 +340,7 @@ ProcessConfig = uFldNodeBroker
     interface = """\
 SUBSCRIPTIONS:
   PHI_HOST_INFO         this community's host record (from pHostInfo, if one runs)
-  PSHARE_INPUT_SUMMARY  pShare's input routes (stand-in for PHI_HOST_INFO)
+  PSHARE_INPUT_SUMMARY  pShare's input routes (record used until PHI_HOST_INFO)
   NODE_BROKER_ACK       a shore's acknowledgement (host record,status=..,key=<i>,id=..);
                         acks from this vehicle's own community are ignored
   TRY_SHORE_HOST        pshare_route=<ip>:<port>: one more shore to ping

@@ -231,8 +231,8 @@ class ShoreBroker(BrokerApp):
     vehicle name), $v (as given) and $N (1-based vehicle index) in src.
 
     Usage: uFldShoreBroker mission.moos [alias]  (reads its ProcessConfig block)
-    The acks carry this community's host record: PHI_HOST_INFO if a pHostInfo runs, otherwise one
-    built from the mission and pShare's PSHARE_INPUT_SUMMARY.
+    The acks carry this community's host record: pHostInfo's PHI_HOST_INFO once a complete one
+    arrives, until then one built from the mission and pShare's PSHARE_INPUT_SUMMARY.
     """
 
     default_name = "uFldShoreBroker"
@@ -261,7 +261,7 @@ ProcessConfig = uFldShoreBroker
 SUBSCRIPTIONS:
   NODE_BROKER_PING       a vehicle's host record (bridged by its pShare); local ones are ignored
   PHI_HOST_INFO          this community's host record (from pHostInfo, if one runs)
-  PSHARE_INPUT_SUMMARY   pShare's input routes (stand-in for PHI_HOST_INFO)
+  PSHARE_INPUT_SUMMARY   pShare's input routes (record used until PHI_HOST_INFO)
   PSHARE_OUTPUT_SUMMARY  what pShare already forwards (those bridges are not requested again)
 
 PUBLICATIONS:
