@@ -4,6 +4,7 @@ from __future__ import annotations
 import asyncio
 import bisect
 import contextlib
+import logging
 import signal
 import subprocess
 import sys
@@ -28,12 +29,31 @@ from oilspill_moos.viewer.model import (
 )
 from oilspill_moos.viewer.server import MapServer
 
+log = logging.getLogger("oilspill_moos.viewer")
+
 BUTTON_KEYS = ("button_one", "button_two", "button_three", "button_four", "button_five", "button_six",
                "button_seven", "button_eight", "button_nine", "button_ten")
 DEFAULT_BUTTON = "DEPLOY # DEPLOY_ALL=true # MOOS_MANUAL_OVERRIDE_ALL=false # RETURN_ALL=false"
 RETURN_BUTTON = "RETURN_ALL # RETURN_ALL=true"
 KNOWN = {"http_host", "http_port", "refresh_hz", "trail_length", "boundary_host", "boundary_port", "action",
          *BUTTON_KEYS}
+# Parameters of the C++ pMarineViewer that this viewer does not implement (display layout, fonts,
+# background image, pop-up commands, ...): missions written for it carry them, so they are summed up
+# in one line instead of a warning each; an unknown key is still warned about by itself.
+CPP_VIEWER_KEYS = frozenset({
+    "action+", "app_logging", "appcast_color_scheme", "appcast_font_size", "appcast_height",
+    "appcast_viewable", "appcast_width", "beat_flag", "circle_viewable_all", "cmd",
+    "comms_pulse_viewable_all", "content_mode", "datum_viewable", "drop_point_vertex_size",
+    "drop_point_viewable_all", "full_screen", "grid_viewable_all", "hash_delta", "hash_shade", "hash_view",
+    "hash_viewable", "infocast_viewable", "left_context", "log_the_image", "marker_viewable_all",
+    "node_pulse_viewable_all", "nodes_font_size", "point_vertex_size", "point_viewable_all",
+    "point_viewable_labels", "polygon_viewable_all", "polygon_viewable_labels", "procs_font_size",
+    "realmcast_channel", "right_context", "scope", "seglist_edge_width", "seglist_vertex_color",
+    "seglist_vertex_size", "seglist_viewable_all", "set_pan_x", "set_pan_y", "stale_remove_thresh",
+    "stale_report_thresh", "tiff_file", "trails_color", "trails_length", "trails_point_size",
+    "trails_viewable", "vehicle_shape_scale", "vehicles_active_color", "vehicles_inactive_color",
+    "vehicles_name_mode", "vehicles_name_viewable", "vehicles_shape_scale", "vehicles_viewable",
+    "watch_cluster", "zoom"})
 
 
 def read_settings(config, mission) -> dict:
@@ -69,6 +89,22 @@ def read_settings(config, mission) -> dict:
                                               lo=1, hi=65535)),
             "buttons": (buttons or [parse_button(DEFAULT_BUTTON)]) + [parse_button(RETURN_BUTTON)],
             "actions": actions}
+
+
+def ignored_cpp_keys(config) -> list[str]:
+    """The block's C++ pMarineViewer parameters this viewer ignores, once each in order of appearance
+    (a `left_context[station]` key is known by its `left_context` part)."""
+    keys = [entry.key.lower() for entry in getattr(config, "entries", [])]
+    return list(dict.fromkeys(k for k in keys if k.split("[", 1)[0] in CPP_VIEWER_KEYS and k not in KNOWN))
+
+
+def warn_config(config, name: str) -> None:
+    """One summary line for the C++ viewer's parameters, a warning each for keys nobody knows."""
+    ignored = ignored_cpp_keys(config)
+    if ignored:
+        log.warning("%s: ignoring %d parameters of the C++ viewer it does not implement: %s",
+                    name, len(ignored), ", ".join(ignored))
+    warn_unhandled(config, KNOWN | set(ignored))
 
 
 def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0,
@@ -154,7 +190,7 @@ PUBLICATIONS:
         if getattr(self, "scene", None) is not None:
             return
         self.settings = read_params(self.config, lambda cfg: read_settings(cfg, self.mission))
-        warn_unhandled(self.config, KNOWN)
+        warn_config(self.config, self.name)
         self.buttons: list[Button] = self.settings["buttons"]
         self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
         self.actions: list[Button] = self.settings["actions"]

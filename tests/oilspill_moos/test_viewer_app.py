@@ -4,6 +4,8 @@ poked with the community's warped time, so is a chosen action, a page sending no
 another site cannot open the WebSocket."""
 import asyncio
 import json
+import logging
+from pathlib import Path
 
 import pytest
 import websockets
@@ -11,7 +13,8 @@ import websockets
 from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import moos_time
-from oilspill_moos.viewer.app import MarineViewer
+from moosdb_py.mission import read_mission
+from oilspill_moos.viewer.app import MarineViewer, warn_config
 from oilspill_moos.viewer.server import MapServer
 
 WARP = 20.0
@@ -79,3 +82,26 @@ def test_websocket_only_from_the_viewers_own_page():
     assert server.own_page("http://localhost:8080", "127.0.0.1:8080")
     assert not server.own_page("http://evil.example", "shore.example:8080")
     assert not server.own_page("http://shore.example:8081", "shore.example:8080")
+
+
+CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
+
+
+def test_cpp_viewer_parameters_are_one_summary_line_but_misspelt_keys_warn(tmp_path, caplog):
+    mission = read_mission(CORPUS / "s1_alpha" / "alpha.moos")
+    with caplog.at_level(logging.WARNING):
+        warn_config(mission.process_config("pMarineViewer"), "pMarineViewer")
+    assert len(caplog.records) == 1
+    line = caplog.records[0].getMessage()
+    assert line.startswith("pMarineViewer: ignoring 19 parameters of the C++ viewer it does not implement: tiff_file, ")
+    assert "right_context[return]" in line and "action+" in line
+    caplog.clear()
+    path = tmp_path / "m.moos"
+    path.write_text("ProcessConfig = pMarineViewer\n{\n  tiff_file = forrest19.tif\n  zoom = 0.6\n"
+                    "  tiff_fil = x.tif\n  http_prot = 8081\n  left_context[station] = STATION=true\n}\n")
+    with caplog.at_level(logging.WARNING):
+        warn_config(read_mission(path).process_config("pMarineViewer"), "pMarineViewer")
+    messages = [r.getMessage() for r in caplog.records]
+    assert messages[0] == ("pMarineViewer: ignoring 3 parameters of the C++ viewer it does not implement: "
+                           "tiff_file, zoom, left_context[station]")
+    assert messages[1:] == [f"{path}:5: unhandled parameter 'tiff_fil'", f"{path}:6: unhandled parameter 'http_prot'"]
