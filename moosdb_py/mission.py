@@ -181,6 +181,15 @@ def db_address(mission: Mission | None, host: str | None = None, port: int | Non
     return host or mission.server_host, port or mission.server_port, time_warp or mission.time_warp
 
 
+def add_db_arguments(parser, warp_help: str) -> None:
+    """The command-line options `db_address` takes (MOOS's uXMS/uPokeDB names first, then the short ones)."""
+    parser.add_argument("--serverhost", "--host", "--moos_host", dest="host",
+                        help="MOOSDB host (default: mission or localhost)")
+    parser.add_argument("--serverport", "--port", "--moos_port", dest="port", type=int,
+                        help="MOOSDB port (default: mission or 9000)")
+    parser.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float, help=warp_help)
+
+
 def moos_bool(value: str) -> bool:
     """MOOS booleans: `TRUE` in any case, or a number > 0."""
     try:

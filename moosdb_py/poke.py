@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from .app import print_page
 from .client import MOOSClient
 from .message import MOOSMsg
-from .mission import db_address, read_mission
+from .mission import add_db_arguments, db_address, read_mission
 from .source import MissionFileError
 from .xms import Scope, connect, format_table
 
@@ -77,11 +77,7 @@ PUBLICATIONS:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="uPokeDB", description=__doc__.split("\n\n")[0])
     p.add_argument("args", nargs="*", help="[mission.moos] VAR=value | VAR:=string ...")
-    p.add_argument("--host", "--serverhost", "--moos_host", dest="host", help="MOOSDB host (default: mission or localhost)")
-    p.add_argument("--port", "--serverport", "--moos_port", dest="port", type=int,
-                   help="MOOSDB port (default: mission or 9000)")
-    p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
-                   help="our time warp (default: mission or 1); pokes carry the DB's time whatever it is")
+    add_db_arguments(p, "our time warp (default: mission or 1); pokes carry the DB's time whatever it is")
     p.add_argument("--cache", action="store_true", help="also poke the poke = lines of the mission's uPokeDB block")
     p.add_argument("--alias", default="uPokeDB", help="MOOS name of this client (default uPokeDB)")
     p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT,

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from .app import print_page
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg
-from .mission import Mission, db_address, moos_bool, read_mission
+from .mission import Mission, add_db_arguments, db_address, moos_bool, read_mission
 from .moosdb import wild_match
 from .source import MissionFileError
 
@@ -130,11 +130,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--trunc", type=int, default=0, help="truncate values to N characters (default: no)")
     p.add_argument("-g", "--novirgins", action="store_true", help="hide variables never written")
     p.add_argument("-c", "--clean", action="store_true", help="ignore the var = lines of the uXMS block")
-    p.add_argument("--serverhost", "--host", "--moos_host", dest="host", help="MOOSDB host (default: mission or localhost)")
-    p.add_argument("--serverport", "--port", "--moos_port", dest="port", type=int,
-                   help="MOOSDB port (default: mission or 9000)")
-    p.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float,
-                   help="our time warp (default: mission or 1); (T)ime counts on the DB's clock whatever it is")
+    add_db_arguments(p, "our time warp (default: mission or 1); (T)ime counts on the DB's clock whatever it is")
     p.add_argument("--alias", default="uXMS", help="MOOS name of this client (default uXMS)")
     p.add_argument("--example", action="store_true", help="print an example uXMS config block")
     p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
