@@ -193,11 +193,15 @@ class NodeBrokerState(BrokerState):
                 if self.shared is None or (src, alias, shore.route) not in self.shared]
 
     def repairs(self, now: float) -> list[Post]:
-        """Bridges our pShare no longer shows (it was restarted on its own) are asked for again."""
+        """Bridges our pShare no longer shows (it was restarted on its own) are asked for again, the ping
+        route included: an ack can arrive before our pShare ever had it (a shore that still remembered
+        us acks a restarted vehicle at once), and without it a restarted shore would never hear us."""
         if self.shared is None or (self.last_repair is not None and now - self.last_repair < PING_PERIOD_UNANSWERED):
             return []
         posts: list[Post] = []
-        for shore in self.shores:
+        for i, shore in enumerate(self.shores):
+            if (f"{PING_VAR}_{i}", PING_VAR, shore.route) not in self.shared:
+                posts.append(("PSHARE_CMD", pshare_output_cmd(f"{PING_VAR}_{i}", PING_VAR, shore.route)))
             if shore.bridged_at is not None and now - shore.bridged_at >= PING_PERIOD_UNANSWERED:
                 posts += self.bridge_requests(shore)
         if posts:

@@ -247,9 +247,23 @@ def test_node_asks_again_for_bridges_its_pshare_lost():
     node = make_node()
     node.on_output_summary("NODE_BROKER_PING_0->NODE_BROKER_PING:localhost:9200")
     node.on_ack(SHORE_INFO + ",status=ok,key=0,id=1", "shoreside", 10.0)
-    node.on_output_summary("NODE_REPORT_LOCAL->NODE_REPORT:localhost:9200")
+    node.on_output_summary("NODE_BROKER_PING_0->NODE_BROKER_PING:localhost:9200, "
+                           "NODE_REPORT_LOCAL->NODE_REPORT:localhost:9200")
     assert [k for k, _ in node.iterate(16.0) if k == "PSHARE_CMD"] == []  # all there
     node.on_output_summary("")  # pShare restarted and lost them
     assert ("PSHARE_CMD", "cmd=output,src_name=NODE_REPORT_LOCAL,dest_name=NODE_REPORT,route=localhost:9200") \
         in node.iterate(17.0)
     assert [k for k, _ in node.iterate(18.0) if k == "PSHARE_CMD"] == []  # not more often than every 5 s
+
+
+def test_node_acked_before_its_pshare_had_the_ping_route_asks_for_it():
+    """A restarted vehicle can be acked at once by a shore that still remembers it; its pings must still
+    get a route, or a shore restarted later never hears from it (seen in the fleet restart test)."""
+    node = make_node()
+    node.on_ack(SHORE_INFO + ",status=ok,key=0,id=1", "shoreside", 10.0)
+    node.on_output_summary("NODE_REPORT_LOCAL->NODE_REPORT:localhost:9200")
+    ping_route = ("PSHARE_CMD", "cmd=output,src_name=NODE_BROKER_PING_0,dest_name=NODE_BROKER_PING,route=localhost:9200")
+    assert ping_route in node.iterate(11.0)
+    node.on_output_summary("NODE_BROKER_PING_0->NODE_BROKER_PING:localhost:9200, "
+                           "NODE_REPORT_LOCAL->NODE_REPORT:localhost:9200")
+    assert ping_route not in node.iterate(20.0)

@@ -142,7 +142,7 @@ def test_fleet_bridges_survive_restarts(tmp_path):
     fleet = Fleet(launcher.generate(communities, tmp_path))
     vehicles = ["abe", "ben", "cal"]
     ports = {c.name: c.moos_port for c in communities}
-    shore = Watcher("shoreside", ports["shoreside"], ["NODE_REPORT"])
+    shore = Watcher("shoreside", ports["shoreside"], ["NODE_REPORT", "PSHARE_OUTPUT_SUMMARY", "UFSB_NODE_COUNT"])
     boats = {v: Watcher(v, ports[v], ["DEPLOY", "X"]) for v in vehicles}
 
     async def until(predicate, timeout=30.0):
@@ -152,7 +152,9 @@ def test_fleet_bridges_survive_restarts(tmp_path):
         """Post on the shoreside (again every half second) until each vehicle in seen_by has it."""
         deadline = time.monotonic() + timeout
         while not all(value in boats[v].values(key.rsplit("_", 1)[0]) for v in seen_by):
-            assert time.monotonic() < deadline, f"{key}={value} did not reach {seen_by}"
+            assert time.monotonic() < deadline, (
+                f"{key}={value} did not reach {seen_by}; shoreside: nodes "
+                f"{shore.values('UFSB_NODE_COUNT')[-1:]}, pShare outputs {shore.values('PSHARE_OUTPUT_SUMMARY')[-1:]}")
             shore.client.notify(key, value)
             await asyncio.sleep(0.5)
 
