@@ -15,7 +15,8 @@ from pathlib import Path
 from moosdb_py.ports import free_port  # the product's (the demo uses it too); conftest re-exports it
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
-CONFORMANCE = SHARED / "conformance"
+# The C++ MOOS byte captures ship with the repo (tests/data/README.md says where they came from).
+CONFORMANCE = Path(__file__).resolve().parent / "data" / "conformance"
 
 
 def _check(predicate: Callable[[], object], deadline: float, timeout: float):
