@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from helpers import wait_until
-from oilspill_moos.demo import OilspillMission, free_port
+from browser import Browser, find_chromium
+from helpers import free_port, wait_until
 from oilspill_moos.forecaster.push import boundary_line, push_lines
+from oilspill_moos.oilspill_mission import OilspillMission
 from oilspill_moos.viewer.app import viewer_beside
-from oilspill_moos.viewer.browser import Browser, find_chromium
 
 pytestmark = pytest.mark.skipif(find_chromium() is None, reason="no chromium on PATH (Debian package `chromium`); "
                                 "the browser tests need it and run in CI, where .ci/run installs it")
