@@ -39,6 +39,7 @@ from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
+ARRIVED_M = 15.0   # a vehicle this close to its starting position is there (the progress line)
 
 
 def shipped_boundaries() -> list[bytes]:
@@ -93,7 +94,7 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
     marks = {}
     for phase in (STATION_KEEPING, STARTING_POSITION, OIL_PATH):   # each after the one before, in this cycle
         await wait_for(lambda: observer.phase_event(phase, index) is not None, timeout, f"cycle {number}: {phase}",
-                       mission, progress=lambda: observer.say("waiting", waiting_line(observer, phase)))
+                       mission, progress=lambda: observer.say(*waiting_line(observer, phase)))
         index = observer.phase_event(phase, index)
         marks[phase] = observer.events[index]["moos_s"]
     horizon = status_horizon(observer.status)
@@ -124,29 +125,35 @@ def status_horizon(status: str) -> float | None:
 def transit_line(positions: dict[str, tuple[float, float]], routes: dict[str, list[tuple[float, float]]],
                  speeds: dict[str, float]) -> str | None:
     """How far the fleet has still to go along its routes to the starting positions and when the last
-    vehicle should get there (mission seconds at its reported speed); None before any route."""
+    vehicle should get there (mission seconds at its reported speed); None before any route. A vehicle
+    within ARRIVED_M of its starting position has arrived (it waits there for the others)."""
     left = {}
     for name, route in routes.items():
         if name in positions and route:
-            line = shapely.LineString([positions[name], *route] if len(route) == 1 else route)
             here = shapely.Point(positions[name])
-            left[name] = line.length - line.project(here) + line.distance(here)
+            line = shapely.LineString(route) if len(route) > 1 else None
+            left[name] = (line.length - line.project(here) + line.distance(here) if line is not None
+                          and line.length > 1e-6 else here.distance(shapely.Point(route[-1])))
     if not left:
         return None
-    farthest = max(left, key=left.get)
-    etas = [left[n] / speeds[n] for n in left if speeds.get(n, 0.0) > 0.1]
-    eta = f"ETA {max(etas):.0f} s mission time" if len(etas) == len(left) else "ETA unknown (a vehicle is stopped)"
-    return f"{left[farthest]:.0f} m to go ({farthest} farthest, {len(left)} vehicle(s) in transit), {eta}"
+    going = {name: metres for name, metres in left.items() if metres > ARRIVED_M}
+    arrived = f"{len(left) - len(going)} of {len(left)} at their starting positions"
+    if not going:
+        return arrived
+    farthest = max(going, key=going.get)
+    etas = [going[n] / speeds[n] for n in going if speeds.get(n, 0.0) > 0.1]
+    eta = f"ETA {max(etas):.0f} s mission time" if len(etas) == len(going) else "ETA unknown (a vehicle is stopped)"
+    return f"{going[farthest]:.0f} m to go ({farthest} farthest; {arrived}), {eta}"
 
 
-def waiting_line(observer: Observer, phase: str) -> str:
+def waiting_line(observer: Observer, phase: str) -> tuple[str, str]:
     """The progress line while the demo waits for `phase`: distance and ETA while the fleet transits."""
     if phase == OIL_PATH:
         positions = {name: track[-1][1:] for name, track in observer.tracks.items()}
         line = transit_line(positions, observer.routes, observer.speeds)
         if line is not None:
-            return line
-    return f"for {phase} (fleet phase {observer.phase or 'none yet'})"
+            return "transit", line
+    return "waiting", f"for {phase} (fleet phase {observer.phase or 'none yet'})"
 
 
 def timeline_problems(report: dict, mission_s: float) -> list[str]:
@@ -261,7 +268,7 @@ def metre_axes(ax) -> None:
     ticks that their labels never run into each other."""
     from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-    span = max(abs(v) for v in (*ax.get_xlim(), *ax.get_ylim()))
+    span = max(hi - lo for lo, hi in (ax.get_xlim(), ax.get_ylim()))
     unit, scale = ("km", 1000.0) if span >= 5000 else ("m", 1.0)
     for axis, what in ((ax.xaxis, f"x ({unit} east of LongOrigin)"), (ax.yaxis, f"y ({unit} north of LatOrigin)")):
         axis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]))
@@ -269,20 +276,18 @@ def metre_axes(ax) -> None:
         axis.set_label_text(what)
 
 
-def write_report(out: Path, observer: Observer, report: dict) -> None:
-    import matplotlib
+def draw_tracks(observer: Observer, report: dict):
+    """tracks.png's figure: the boundaries in force, the stand-off loops, each vehicle's track."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(8, 8))
+    fig = Figure(figsize=(8, 8))
+    ax = fig.subplots()
     boundaries = list(dict.fromkeys(tuple(poly) for poly in observer.boundaries))  # repeats drawn once
     horizons = [c.get("horizon_h") for c in report["cycles"]] if len(boundaries) == len(report["cycles"]) else []
     shades = ("dimgray", "tab:purple", "tab:olive", "tab:cyan")
     for i, poly in enumerate(boundaries):
         xs, ys = zip(*(poly + poly[:1]))
-        what = f" ({horizons[i]} h forecast)" if horizons else ""
+        what = f" ({horizons[i]:g} h forecast)" if horizons and horizons[i] is not None else ""
         ax.fill(xs, ys, color=shades[i % len(shades)], alpha=0.2, label=f"boundary in force {i + 1}{what}")
     for i, poly in enumerate(dict.fromkeys(tuple(poly) for poly in observer.regions)):
         poly = list(poly)
@@ -297,10 +302,14 @@ def write_report(out: Path, observer: Observer, report: dict) -> None:
             ax.plot(lx, ly, "*", ms=12, color=line.get_color())
     ax.set_aspect("equal")
     metre_axes(ax)
-    ax.set_title("oil-spill containment: tracks (o = start), boundaries in force and loops (* = last loop start)")
+    ax.set_title("oil-spill containment: tracks (o = start), boundaries in force\nand loops (* = last loop start)")
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
-    fig.savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    return fig
+
+
+def write_report(out: Path, observer: Observer, report: dict) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    draw_tracks(observer, report).savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
     (out / "timeline.json").write_text(json.dumps(report, indent=2))
 
 
