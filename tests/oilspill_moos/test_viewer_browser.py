@@ -91,10 +91,13 @@ async def until(browser: Browser, expression: str, timeout: float = TIMEOUT, wha
 
 
 PHASES = "[...document.querySelectorAll('#vehicles tbody td.phase')].map(td => td.textContent)"
-# Pairs of labels drawn over each other in the last frame (none, whatever the picture).
-OVERLAPS = ("(() => { const l = window.viewerLabels, o = []; for (let i = 0; i < l.length; i++) for (let j = 0; j < i; j++)"
-            " { const a = l[i], b = l[j]; if (a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h)"
-            " o.push([a.text, b.text]); } return o; })()")
+# Pairs of labels drawn over each other, or over a vehicle or a point, in the last frame (none, whatever
+# the picture).
+OVERLAPS = ("(() => { const l = window.viewerLabels, o = [], hit = (a, b) => a.x < b.x + b.w && b.x < a.x + a.w"
+            " && a.y < b.y + b.h && b.y < a.y + a.h; for (let i = 0; i < l.length; i++) {"
+            " for (let j = 0; j < i; j++) if (hit(l[i], l[j])) o.push([l[i].text, l[j].text]);"
+            " for (const b of window.viewerObstacles) if (hit(l[i], b)) o.push([l[i].text, 'a vehicle or point']); }"
+            " return o; })()")
 # The status table: one row per field, each value on one line (no word broken over two).
 STATUS_ROWS = ("[...document.querySelectorAll('#status dd')].map(dd => [dd.dataset.key, dd.textContent,"
                " dd.getClientRects().length === 1 && dd.getBoundingClientRect().height < 20])")

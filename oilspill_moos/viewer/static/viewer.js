@@ -427,6 +427,7 @@ function labelForecasts() {
 const LABEL_H = 13;
 let queuedLabels = [], labelObstacles = [];
 window.viewerLabels = [];   // what was placed in the last frame: {text, x, y, w, h} (tests read it)
+window.viewerObstacles = [];   // the vehicles' hulls and the points' dots it kept clear of
 
 // `rank`: lower is placed first and so gets its preferred spot (vehicle names 0, markers 1, ...).
 function queueLabel(text, [x, y], clearance, color, font, rank) {
@@ -468,6 +469,7 @@ function placeLabels() {
     placed.push({ text: label.text, ...chosen });
   }
   window.viewerLabels = placed;
+  window.viewerObstacles = labelObstacles;
   queuedLabels = [];
   labelObstacles = [];
 }
@@ -534,7 +536,8 @@ function drawMarkers() {
       const r = Math.max(2, Number(style.vertex_size) || 4);
       ctx.fillStyle = cssColor(style.vertex_color) || "#ffe066";
       ctx.beginPath(); ctx.arc(sx, sy, r, 0, 2 * Math.PI); ctx.fill();
-      queueLabel(m.label, [sx, sy], r, "#cfd8e3", "10px system-ui, sans-serif", 1);
+      queueLabel(m.label, [sx, sy], r, "//cfd8e3", "10px system-ui, sans-serif", 1);
+      labelObstacles.push({ x: sx - r, y: sy - r, w: 2 * r, h: 2 * r });   // no other label over the point
       continue;
     }
     if (m.points.length < 2) continue;
