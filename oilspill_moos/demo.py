@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import math
 import os
 import sys
 import time
@@ -24,6 +23,7 @@ from pathlib import Path
 
 import shapely
 
+from moosdb_py.formats import FormatError, parse_number, parse_pairs
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
@@ -33,7 +33,6 @@ from oilspill_moos.response.path_assign import (
     STARTING_POSITION,
     STATION_KEEPING,
     parse_boundary_line,
-    parse_report,
 )
 from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
@@ -116,10 +115,10 @@ def status_horizon(status: str) -> float | None:
     """The forecast horizon (hours) of pPathAssign's OILSPILL_STATUS, a number; None before any forecast
     (horizon=-1) or without one."""
     try:
-        horizon = float(parse_report(status).get("horizon", "-1"))
-    except ValueError:
+        horizon = parse_number(parse_pairs(status).get("horizon", "-1"))
+    except FormatError:
         return None
-    return horizon if math.isfinite(horizon) and horizon >= 0 else None
+    return horizon if horizon >= 0 else None
 
 
 def transit_line(positions: dict[str, tuple[float, float]], routes: dict[str, list[tuple[float, float]]],

@@ -16,6 +16,7 @@ import numpy as np
 import shapely
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
+from moosdb_py.formats import FormatError, parse_pairs as parse_fields
 from oilspill_moos.app_config import parse_float, parse_pairs
 from oilspill_moos.response.oil_fusion import parse_observation
 
@@ -209,6 +210,14 @@ def _points_update(text: str, what: str) -> list[list[float]]:
         raise ViewError(f"{what} {text!r}: {exc}") from None
 
 
+def _fields(key: str, text: str) -> list[list[str]]:
+    """A `key=value` status line as [key, value] rows, for the page to show one field a row."""
+    try:
+        return [list(pair) for pair in parse_fields(text).items()]
+    except FormatError as exc:
+        raise ViewError(f"{key} {text[:80]!r}: {exc}") from None
+
+
 def _suffix(key: str, prefix: str) -> str:
     return key[len(prefix):].lstrip("_").lower()
 
@@ -361,8 +370,9 @@ class Scene:
             self.loops[name] = _points_update(text, key)
             return [{"t": "loop", "name": name, "points": self.loops[name]}]
         if key == "OILSPILL_STATUS":
+            fields = _fields(key, text)
             self.status = text
-            return [{"t": "status", "text": text}]
+            return [{"t": "status", "text": text, "fields": fields}]
         if key == "OIL_OBSERVATION":
             try:
                 obs = parse_observation(text)
@@ -378,8 +388,9 @@ class Scene:
                 raise ViewError(f"OIL_OBSERVED_EDGE {text!r}: {exc}") from None
             return [{"t": "edge", "points": self.observed_edge}]
         if key == "OIL_FUSION_SKILL":
+            fields = _fields(key, text)
             self.skill = text
-            return [{"t": "skill", "text": text}]
+            return [{"t": "skill", "text": text, "fields": fields}]
         if key in NOTE_KEYS:
             return [self.note(NOTE_KEYS[key], text, time)]
         return []
@@ -428,5 +439,7 @@ class Scene:
                 "boundary": self.boundary, "forecasts": self._forecast_updates(), "starts": self.starts,
                 "loops": self.loops, "phase": self.phase,
                 "commanded": self.commanded, "status": self.status, "notes": list(self.notes),
+                "status_fields": _fields("OILSPILL_STATUS", self.status),
+                "skill_fields": _fields("OIL_FUSION_SKILL", self.skill),
                 "observations": list(self.observations), "observed_edge": self.observed_edge, "skill": self.skill,
                 "trail_length": self.trail_length, "ended": self.ended}

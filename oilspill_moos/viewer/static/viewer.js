@@ -13,7 +13,7 @@ const FORECAST_STYLES = [
 const state = {
   setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, forecasts: [], starts: {}, loops: {},
   phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
-  observations: [], observedEdge: [], skill: "", ended: "",
+  observations: [], observedEdge: [], skill: "", ended: "", statusFields: [], skillFields: [],
 };
 const MAX_OBSERVATIONS = 1000;
 const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels per metre
@@ -89,7 +89,8 @@ function loadSnapshot(msg) {
   for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
   Object.assign(state, { boundary: msg.boundary, forecasts: msg.forecasts, starts: msg.starts, loops: msg.loops, phase: msg.phase,
     commanded: msg.commanded, status: msg.status, time: msg.time, observations: msg.observations,
-    observedEdge: msg.observed_edge, skill: msg.skill, ended: msg.ended || "" });
+    observedEdge: msg.observed_edge, skill: msg.skill, ended: msg.ended || "", statusFields: msg.status_fields,
+    skillFields: msg.skill_fields });
   if (first) { buildControls(); setLink(true); }
   document.getElementById("log").replaceChildren();
   for (const note of msg.notes) addNote(note);
@@ -133,13 +134,13 @@ function apply(u) {
     case "commanded": state.commanded[u.name] = u.phase; break;
     case "start": state.starts[u.name] = u.point; break;
     case "loop": state.loops[u.name] = u.points; break;
-    case "status": state.status = u.text; break;
+    case "status": state.status = u.text; state.statusFields = u.fields; break;
     case "obs":
       state.observations.push(u);
       if (state.observations.length > MAX_OBSERVATIONS) state.observations.shift();
       break;
     case "edge": state.observedEdge = u.points; break;
-    case "skill": state.skill = u.text; break;
+    case "skill": state.skill = u.text; state.skillFields = u.fields; break;
     case "note": addNote(u); break;
     case "ended": state.ended = u.text; showEnded(); break;
     case "resumed": state.ended = ""; showEnded(); break;
@@ -189,10 +190,10 @@ function refreshPanel() {
   const phase = document.getElementById("phase");
   phase.textContent = state.phase || "—";
   phase.className = "phase-tag ph-" + (state.phase || "none");
-  showFields(document.getElementById("status"), state.status, "no status yet");
+  showFields(document.getElementById("status"), state.status, state.statusFields, "no status yet");
   const skill = document.getElementById("skill");
   skill.hidden = !state.skill;
-  showFields(skill, state.skill, "");
+  showFields(skill, state.skill, state.skillFields, "");
   showSpill();
   const body = document.querySelector("#vehicles tbody");
   const rows = [];
@@ -216,28 +217,13 @@ function refreshPanel() {
   body.replaceChildren(...rows);
 }
 
-// A MOOS `key=value,key=value` string (commas inside {..} belong to the value) as pairs.
-function keyValues(text) {
-  const pairs = [];
-  let depth = 0, item = "";
-  for (const ch of text + ",") {
-    if (ch === "{") depth += 1;
-    if (ch === "}") depth = Math.max(0, depth - 1);
-    if (ch === "," && depth === 0) {
-      const at = item.indexOf("=");
-      if (item.trim()) pairs.push(at < 0 ? ["", item.trim()] : [item.slice(0, at).trim(), item.slice(at + 1).trim()]);
-      item = "";
-    } else item += ch;
-  }
-  return pairs;
-}
-
 const FIELD_UNITS = { boundary_age: " s", horizon: " h" };
-// A status line for people: one row per field, "boundary age  12.3 s", a vehicle list with spaces
-// (so it wraps between names), -1 (pPathAssign's "none yet") as a dash; the raw line in the tooltip.
-function showFields(dl, text, empty) {
+// A status line for people: one row per field (the server splits the `key=value` line), "boundary
+// age  12.3 s", a vehicle list with spaces (so it wraps between names), -1 (pPathAssign's "none
+// yet") as a dash; the raw line in the tooltip.
+function showFields(dl, text, fields, empty) {
   const rows = [];
-  for (const [key, raw] of keyValues(text || "")) {
+  for (const [key, raw] of fields) {
     const unit = FIELD_UNITS[key] || (key.endsWith("_m") ? " m" : "");
     const name = (unit === " m" ? key.slice(0, -2) : key).replace(/_/g, " ");
     const value = raw === "-1" ? "—" : key === "vehicles" ? raw.split(":").join(", ") : raw + (raw ? unit : "");
