@@ -16,7 +16,6 @@ import numpy as np
 import shapely
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
-from moosdb_py.formats import FormatError, parse_pairs as parse_fields
 from oilspill_moos.app_config import parse_float, parse_pairs
 from oilspill_moos.response.oil_fusion import parse_observation
 
@@ -213,8 +212,8 @@ def _points_update(text: str, what: str) -> list[list[float]]:
 def _fields(key: str, text: str) -> list[list[str]]:
     """A `key=value` status line as [key, value] rows, for the page to show one field a row."""
     try:
-        return [list(pair) for pair in parse_fields(text).items()]
-    except FormatError as exc:
+        return [list(pair) for pair in parse_pairs(text).items()]
+    except ValueError as exc:
         raise ViewError(f"{key} {text[:80]!r}: {exc}") from None
 
 

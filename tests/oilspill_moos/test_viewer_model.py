@@ -209,8 +209,8 @@ def test_scene_follows_the_mission_and_snapshots_it():
     scene.apply("STARTING_POSITION_UPDATES_ABE", "points=-10.0,5.0", 15.0)
     scene.apply("OIL_PATH_UPDATES_ABE", "points=-10,5:0,-10:10,5#repeat=forever#speed=2", 16.0)
     scene.apply("VIEW_POLYGON", "pts={0,0:1,0:1,1},label=standoff", 16.0)
-    [status] = scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,vehicles=abe,area=pts={0,0:1,1}", 17.0)
-    assert status["fields"] == [["phase", "OIL-PATH"], ["vehicles", "abe"], ["area", "pts={0,0:1,1}"]]
+    [status] = scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,vehicles=abe,Boundary_Age=2.5", 17.0)
+    assert status["fields"] == [["phase", "OIL-PATH"], ["vehicles", "abe"], ["boundary_age", "2.5"]]
     with pytest.raises(ViewError, match="OILSPILL_STATUS 'phase=OIL-PATH,oops'"):   # the page shows one field a row
         scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,oops", 17.0)
     scene.apply("OILSPILL_WARNING", "127.0.0.1:5000: bad JSON", 17.0)
