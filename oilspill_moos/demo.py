@@ -38,7 +38,6 @@ from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
-ARRIVED_M = 15.0   # a vehicle this close to its starting position is there (the progress line)
 
 
 def shipped_boundaries() -> list[bytes]:
@@ -122,10 +121,10 @@ def status_horizon(status: str) -> float | None:
 
 
 def transit_line(positions: dict[str, tuple[float, float]], routes: dict[str, list[tuple[float, float]]],
-                 speeds: dict[str, float]) -> str | None:
+                 speeds: dict[str, float], arrived: set[str]) -> str | None:
     """How far the fleet has still to go along its routes to the starting positions and when the last
-    vehicle should get there (mission seconds at its reported speed); None before any route. A vehicle
-    within ARRIVED_M of its starting position has arrived (it waits there for the others)."""
+    vehicle should get there (mission seconds at its reported speed); None before any route. The
+    `arrived` vehicles hold station at their starting positions, waiting for the others."""
     left = {}
     for name, route in routes.items():
         if name in positions and route:
@@ -135,7 +134,7 @@ def transit_line(positions: dict[str, tuple[float, float]], routes: dict[str, li
                           and line.length > 1e-6 else here.distance(shapely.Point(route[-1])))
     if not left:
         return None
-    going = {name: metres for name, metres in left.items() if metres > ARRIVED_M}
+    going = {name: metres for name, metres in left.items() if name not in arrived}
     arrived = f"{len(left) - len(going)} of {len(left)} at their starting positions"
     if not going:
         return arrived
@@ -149,7 +148,8 @@ def waiting_line(observer: Observer, phase: str) -> tuple[str, str]:
     """The progress line while the demo waits for `phase`: distance and ETA while the fleet transits."""
     if phase == OIL_PATH:
         positions = {name: track[-1][1:] for name, track in observer.tracks.items()}
-        line = transit_line(positions, observer.routes, observer.speeds)
+        holding = {name for name, mode in observer.modes.items() if mode.endswith(STATION_KEEPING)}
+        line = transit_line(positions, observer.routes, observer.speeds, holding)
         if line is not None:
             return "transit", line
     return "waiting", f"for {phase} (fleet phase {observer.phase or 'none yet'})"

@@ -37,28 +37,27 @@ def test_the_horizon_is_a_number():
 def test_transit_line_gives_distance_along_the_route_and_the_eta_of_the_last_vehicle():
     routes = {"abe": [(0.0, 0.0), (100.0, 0.0), (100.0, 100.0)], "ben": [(0.0, 0.0), (0.0, 50.0)]}
     positions = {"abe": (50.0, 0.0), "ben": (0.0, 20.0)}
-    line = transit_line(positions, routes, {"abe": 2.0, "ben": 2.0})
+    line = transit_line(positions, routes, {"abe": 2.0, "ben": 2.0}, set())
     assert line == "150 m to go (abe farthest; 0 of 2 at their starting positions), ETA 75 s mission time"
-    stopped = transit_line(positions, routes, {"abe": 0.0, "ben": 2.0})
+    stopped = transit_line(positions, routes, {"abe": 0.0, "ben": 2.0}, set())
     assert stopped.endswith("ETA unknown (a vehicle is stopped)")
-    there = {"abe": (50.0, 0.0), "ben": (0.0, 45.0)}                 # ben 5 m from its start: arrived, waiting
-    assert transit_line(there, routes, {"abe": 2.0, "ben": 0.0}) == (
+    # ben holds station 15 m off its point (the helm says STATION-KEEPING): arrived, its 0 m/s is no worry
+    there = {"abe": (50.0, 0.0), "ben": (0.0, 35.0)}
+    assert transit_line(there, routes, {"abe": 2.0, "ben": 0.0}, {"ben"}) == (
         "150 m to go (abe farthest; 1 of 2 at their starting positions), ETA 75 s mission time")
-    assert transit_line({"abe": (100.0, 95.0)}, {"abe": routes["abe"]}, {"abe": 0.0}) == (
-        "1 of 1 at their starting positions")
-    assert transit_line(positions, {}, {}) is None                # no routes yet: nothing to say
-    off_route = transit_line({"abe": (50.0, 30.0)}, {"abe": routes["abe"]}, {"abe": 1.0})
+    assert transit_line(there, routes, {"abe": 0.0, "ben": 0.0}, {"abe", "ben"}) == "2 of 2 at their starting positions"
+    assert transit_line(positions, {}, {}, set()) is None           # no routes yet: nothing to say
+    off_route = transit_line({"abe": (50.0, 30.0)}, {"abe": routes["abe"]}, {"abe": 1.0}, set())
     assert off_route.startswith("180 m to go")                    # 30 m back to the route, then 150 m along it
+    single = transit_line({"abe": (0.0, 0.0)}, {"abe": [(30.0, 40.0)]}, {"abe": 5.0}, set())
+    assert single.startswith("50 m to go") and "ETA 10 s" in single   # a one-point route: straight there
 
 
 @given(st.floats(-5e4, 5e4), st.floats(-5e4, 5e4), st.floats(0.5, 10.0))
 def test_transit_line_from_the_start_of_a_straight_route_is_its_length(x, y, speed):
-    line = transit_line({"abe": (0.0, 0.0)}, {"abe": [(0.0, 0.0), (x, y)]}, {"abe": speed})
+    line = transit_line({"abe": (0.0, 0.0)}, {"abe": [(0.0, 0.0), (x, y)]}, {"abe": speed}, set())
     length = math.hypot(x, y)
-    if length <= 15.0:
-        assert line == "1 of 1 at their starting positions"
-    else:
-        assert line.startswith(f"{length:.0f} m to go") and f"ETA {length / speed:.0f} s" in line
+    assert line.startswith(f"{length:.0f} m to go") and f"ETA {length / speed:.0f} s" in line
 
 
 def test_a_long_wait_says_how_it_is_going():
