@@ -13,6 +13,8 @@ import logging
 import signal
 import socket
 import sys
+import time as _time
+from collections.abc import Iterable
 
 from . import codec
 from .app import print_page
@@ -50,7 +52,7 @@ class ClientConnection(asyncio.Protocol):
 
     def data_received(self, data):
         db = self.db
-        db.transmit(db.core.receive(self.client, data, db.now()))
+        db.transmit(db.core.receive(self.client, data, _time.time() * db.time_warp))
 
     def connection_lost(self, exc):
         db = self.db
@@ -89,7 +91,7 @@ class MOOSDB:
         return self.core.vars
 
     def now(self) -> float:
-        return moos_time(self.time_warp)
+        return moos_time(self.time_warp)     # data_received inlines this (hot path)
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
@@ -121,21 +123,21 @@ class MOOSDB:
             await asyncio.sleep(period)
             self.transmit(self.core.tick(self.now()))
 
-    def transmit(self, outgoing: list[Outgoing]) -> None:
+    def transmit(self, outgoing: Iterable[Outgoing]) -> None:
         """Do what the core answered; a client whose unsent backlog passes max_queue is dropped."""
-        stuck = []
+        stuck = None
         for client, data, end in outgoing:
             transport = client.handle
             if data:
                 transport.write(data)
             if end is None:
                 if transport.get_write_buffer_size() > self.max_queue:
-                    stuck.append(client)
+                    stuck = [*(stuck or ()), client]
             elif end == ABORT:
                 transport.abort()
             elif end == CLOSE:
                 transport.close()
-        for client in stuck:
+        for client in stuck or ():
             reason = f"outgoing queue over {self.max_queue} bytes (client not reading)"
             self.transmit(self.core.drop(client, reason, self.now()))
 
