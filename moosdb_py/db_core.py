@@ -18,8 +18,8 @@ import functools
 import logging
 import re
 import time as _time
-from dataclasses import dataclass, field
 from collections.abc import Iterable
+from dataclasses import dataclass, field
 from typing import Any
 
 from . import codec

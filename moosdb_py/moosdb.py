@@ -13,7 +13,6 @@ import logging
 import signal
 import socket
 import sys
-import time as _time
 from collections.abc import Iterable
 
 from . import codec
@@ -52,7 +51,7 @@ class ClientConnection(asyncio.Protocol):
 
     def data_received(self, data):
         db = self.db
-        db.transmit(db.core.receive(self.client, data, _time.time() * db.time_warp))
+        db.transmit(db.core.receive(self.client, data, moos_time(db.time_warp)))
 
     def connection_lost(self, exc):
         db = self.db
@@ -91,7 +90,7 @@ class MOOSDB:
         return self.core.vars
 
     def now(self) -> float:
-        return moos_time(self.time_warp)     # data_received inlines this (hot path)
+        return moos_time(self.time_warp)
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
