@@ -14,15 +14,14 @@ well as under traffic, and bad input costs only the offending client its connect
 """
 from __future__ import annotations
 
-import functools
 import logging
-import re
 import time as _time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 from . import codec
+from .formats import wild_match
 from .message import (BINARY, COMMAND, DOUBLE, NOT_SET, NOTIFY, NULL_MSG, POISON, REGISTER, SERVER_REQUEST,
                       STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, WILDCARD_UNREGISTER, MOOSMsg)
 
@@ -41,17 +40,6 @@ PROTOCOL, NAME, READY, CLOSED = "protocol", "name", "ready", "closed"
 # What the shell does with a connection after writing its bytes.
 CLOSE = "close"         # close once the bytes are sent
 ABORT = "abort"         # cut off at once
-
-
-@functools.lru_cache(maxsize=4096)
-def _glob(pattern: str) -> re.Pattern:
-    """MOOSWildCmp: whole-string, case-sensitive, only `*` and `?` are special."""
-    return re.compile("".join(".*" if c == "*" else "." if c == "?" else re.escape(c) for c in pattern) + r"\Z",
-                      re.DOTALL)
-
-
-def wild_match(pattern: str, text: str) -> bool:
-    return _glob(pattern).match(text) is not None
 
 
 def parse_wildcard(sval: str) -> tuple[str, str, float]:

@@ -19,7 +19,7 @@ from . import codec
 from .app import print_page
 from .db_core import (ABORT, CLOSE, DEFAULT_CLIENT_TIMEOUT, DEFAULT_COMMUNITY, DEFAULT_MAX_QUEUE, REFRESH_PERIOD,
                       DBClient, DBVar, MOOSDBCore, Outgoing)
-from .db_core import wild_match  # noqa: F401  (uXMS, pLogger and pShare import it from here)
+from .formats import wild_match  # noqa: F401  (uXMS, pLogger and pShare still import it from here)
 from .message import moos_time
 
 log = logging.getLogger("moosdb")

@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 
 from helpers import conformance_files, load_capture
 from moosdb_py import codec
-from moosdb_py.db_core import ABORT, CLOSE, MOOSDBCore, wild_match
+from moosdb_py.db_core import ABORT, CLOSE, MOOSDBCore
+from moosdb_py.formats import wild_match
 from moosdb_py.message import DOUBLE, MOOSMsg, NOTIFY, SERVER_REQUEST_ID
 
 VARYING_CONTENT = {"DB_TIME", "DB_UPTIME", "DB_VARSUMMARY", "DB_QOS", "DB_RWSUMMARY"}
