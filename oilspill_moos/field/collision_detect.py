@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 from behaviors.flags import FlagError, FlagSpec, parse_flag
 from behaviors.geometry import fmt_num
 from behaviors.logic import Condition, ConditionError, condition_variables, parse_condition
-from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import ConfigValueError, config_bool, config_float, read_params, warn_unhandled
 from oilspill_moos.geodesy import mission_grid
+from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import NodeRecord, NodeRecordError
 
 log = logging.getLogger(__name__)
@@ -132,7 +132,7 @@ class CollisionMonitor:
         self.records[record.name], self.groups[record.name] = record, group
         self.updated.add(record.name)
 
-    def on_mail(self, key: str, value, sender: str = "") -> None:
+    def on_mail(self, key: str, value, now: float = 0.0, sender: str = "") -> None:
         if key == "NODE_REPORT":
             try:
                 self.on_node_report(value if isinstance(value, str) else "")
@@ -255,7 +255,7 @@ COLLISION_KEYS = frozenset({
     "pulse_range", "pulse_duration", "encounter_rings", "app_logging"})
 
 
-class CollisionDetect(MOOSApp):
+class CollisionDetect(MachineApp):
     """uFldCollisionDetect: counts encounters, near misses and collisions between vehicles.
 
     Runs on the shoreside with every vehicle's NODE_REPORT. When two vehicles pass each other
@@ -267,6 +267,7 @@ class CollisionDetect(MOOSApp):
     """
 
     default_name = "uFldCollisionDetect"
+    inputs = ("NODE_REPORT",)
     example_config = """\
 ProcessConfig = uFldCollisionDetect
 {
@@ -314,30 +315,21 @@ PUBLICATIONS:
         warn_unhandled(self.config, COLLISION_KEYS)
         for warning in params.warnings:
             log.warning("%s: %s", self.name, warning)
-        self.monitor = CollisionMonitor(params, mission_grid(self.mission))
+        self.machine = CollisionMonitor(params, mission_grid(self.mission))
         self.params_posted = False
 
-    def on_connect(self) -> None:
-        self.register("NODE_REPORT")
-        for var in condition_variables(self.monitor.params.conditions):
-            self.register(var)
-
-    def on_new_mail(self, mail) -> None:
-        for msg in mail:
-            self.monitor.on_mail(msg.key, msg.value, msg.sender)
-        while self.monitor.warnings:
-            log.warning("%s: %s", self.name, self.monitor.warnings.pop(0))
+    def registrations(self) -> list[str]:
+        return [*self.inputs, *condition_variables(self.machine.params.conditions)]
 
     def iterate(self) -> None:
         if not self.params_posted:
-            self.notify("COLLISION_DETECT_PARAMS", self.monitor.params_summary())
+            self.notify("COLLISION_DETECT_PARAMS", self.machine.params_summary())
             self.params_posted = True
-        for key, value in self.monitor.iterate(self.moos_time()):
-            self.notify(key, value)
+        super().iterate()
 
     def status_fields(self) -> dict:
-        t = self.monitor.totals
-        closest = self.monitor.closest_ever
+        t = self.machine.totals
+        closest = self.machine.closest_ever
         return {"encounters": t["encounter"], "near_misses": t["near_miss"], "collisions": t["collision"],
                 "closest": f"{closest:.2f}" if math.isfinite(closest) else "none"}
 

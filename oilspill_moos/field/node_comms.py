@@ -11,19 +11,17 @@ and the clock in, postings out); its random drops come from a numpy Generator it
 """
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import (
     ConfigValueError, config_bool, config_float, config_str, parse_pairs, read_params, warn_unhandled)
 from oilspill_moos.geodesy import mission_grid
+from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import NodeMessage, NodeRecord, NodeRecordError
 
-log = logging.getLogger(__name__)
 
 Post = tuple[str, str | float]
 MIN_STEALTH, MAX_EARANGE = 0.1, 10.0
@@ -293,7 +291,7 @@ INPUTS = ("NODE_REPORT", "NODE_REPORT_LOCAL", "NODE_MESSAGE", "UNC_STEALTH", "UN
           "UNC_DROP_PCT")
 
 
-class NodeComms(MOOSApp):
+class NodeComms(MachineApp):
     """uFldNodeComms: relays each vehicle's NODE_REPORT and NODE_MESSAGE to the vehicles that can hear it.
 
     Runs on the shoreside. A report from vehicle A goes to vehicle B as NODE_REPORT_B when B has
@@ -305,6 +303,7 @@ class NodeComms(MOOSApp):
     """
 
     default_name = "uFldNodeComms"
+    inputs = INPUTS
     example_config = """\
 ProcessConfig = uFldNodeComms
 {
@@ -350,26 +349,11 @@ PUBLICATIONS:
     def on_startup(self) -> None:
         params = read_params(self.config, NodeCommsParams.from_config)
         warn_unhandled(self.config, NODE_COMMS_KEYS | NOT_IMPLEMENTED_KEYS)
-        self.relay = NodeCommsRelay(params, grid=mission_grid(self.mission), time_warp=self.time_warp)
-
-    def on_connect(self) -> None:
-        for key in INPUTS:
-            self.register(key)
-
-    def on_new_mail(self, mail) -> None:
-        now = self.moos_time()
-        for msg in mail:
-            self.relay.on_mail(msg.key, msg.value, now, msg.sender)
-        while self.relay.warnings:
-            log.warning("%s: %s", self.name, self.relay.warnings.pop(0))
-
-    def iterate(self) -> None:
-        for key, value in self.relay.iterate(self.moos_time()):
-            self.notify(key, value)
+        self.machine = NodeCommsRelay(params, grid=mission_grid(self.mission), time_warp=self.time_warp)
 
     def status_fields(self) -> dict:
-        s = self.relay.stats
-        return {"vehicles": len(self.relay.records), "reports_rcvd": s.reports_rcvd, "reports_sent": s.reports_sent,
+        s = self.machine.stats
+        return {"vehicles": len(self.machine.records), "reports_rcvd": s.reports_rcvd, "reports_sent": s.reports_sent,
                 "messages_rcvd": s.messages_rcvd, "messages_sent": s.messages_sent,
                 "reports_dropped": s.reports_dropped}
 

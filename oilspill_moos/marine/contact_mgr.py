@@ -20,10 +20,10 @@ import shapely
 from behaviors.flags import FlagError, FlagSpec, expand_macros, parse_flag
 from behaviors.geometry import GeometryError, parse_polygon
 from behaviors.logic import as_number
-from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import (
     ConfigValueError, config_bool, config_float, config_str, format_number, read_params, warn_unhandled)
 from oilspill_moos.geodesy import mission_grid
+from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import (
     NodeRecord, NodeRecordError, cpa_range, quoted_pairs, relative_bearing, split_quoted)
 
@@ -471,7 +471,7 @@ INPUTS = ("NODE_REPORT", "BCM_ALERT_REQUEST", "BCM_REPORT_REQUEST", "BCM_DISPLAY
           "NAV_SPEED", "NAV_HEADING", "IVPHELM_STATE")
 
 
-class ContactMgr(MOOSApp):
+class ContactMgr(MachineApp):
     """pContactMgrV20: keeps the contacts heard in NODE_REPORT and posts alerts about them.
 
     Each alert (an `alert = id=..` line, or BCM_ALERT_REQUEST mail from the helm's
@@ -484,6 +484,7 @@ class ContactMgr(MOOSApp):
     """
 
     default_name = "pContactMgrV20"
+    inputs = INPUTS
     example_config = """\
 ProcessConfig = pContactMgrV20
 {
@@ -552,29 +553,14 @@ PUBLICATIONS:
             log.warning("%s: parameters accepted but not acted on (display/logging only): %s", self.name, ", ".join(ignored))
         ownship = (self.mission.community if self.mission is not None else "") or "unknown"
         try:
-            self.manager = ContactManager(ownship, params, mission_grid(self.mission))
+            self.machine = ContactManager(ownship, params, mission_grid(self.mission))
         except AlertError as exc:
             entry = self.config.entry("alert")
             raise (entry.source.error(str(exc)) if entry is not None else exc) from None
 
-    def on_connect(self) -> None:
-        for key in INPUTS:
-            self.register(key)
-
-    def on_new_mail(self, mail) -> None:
-        now = self.moos_time()
-        for msg in mail:
-            self.manager.on_mail(msg.key, msg.value, now, msg.source)
-        while self.manager.warnings:
-            log.warning("%s: %s", self.name, self.manager.warnings.pop(0))
-
-    def iterate(self) -> None:
-        for key, value in self.manager.iterate(self.moos_time()):
-            self.notify(key, value)
-
     def status_fields(self) -> dict:
-        return {"contacts": len(self.manager.contacts), "alerts": len(self.manager.alerts),
-                "alerted": len(self.manager.alerted)}
+        return {"contacts": len(self.machine.contacts), "alerts": len(self.machine.alerts),
+                "alerted": len(self.machine.alerted)}
 
 
 class BasicContactMgr(ContactMgr):

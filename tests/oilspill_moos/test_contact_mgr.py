@@ -262,7 +262,7 @@ def test_mission_block_alerts_with_quoted_values(tmp_path):
                                       "  contact_max_age = 35\n  display_radii = true\n")
     app = ContactMgr(mission)
     app.on_startup()
-    mgr = app.manager
+    mgr = app.machine
     assert (mgr.ownship, mgr.params.decay, mgr.params.contact_max_age) == ("abe", (30.0, 60.0), 35.0)
     assert (mgr.alerts["avdcol_"].range, mgr.alerts["avdcol_"].cpa_range) == (5, 5)   # cpa_range=5 lowers alert_range
     mgr.on_mail("NODE_REPORT", report("ben", 4, 0, time=0), 0)
@@ -279,4 +279,4 @@ def test_bad_parameters_name_the_line(tmp_path):
 def test_pbasiccontactmgr_reads_its_own_block(tmp_path):
     app = BasicContactMgr(write_mission(tmp_path, "  contact_max_age = 3600\n", name="pBasicContactMgr"))
     app.on_startup()
-    assert app.name == "pBasicContactMgr" and app.manager.params.contact_max_age == 3600
+    assert app.name == "pBasicContactMgr" and app.machine.params.contact_max_age == 3600
