@@ -37,7 +37,11 @@ FILTER_KEYS = ("match_name", "ignore_name", "match_group", "ignore_group", "matc
 
 
 class AlertError(ValueError):
-    """An alert configuration (mission line or BCM_ALERT_REQUEST) that cannot be used."""
+    """An alert configuration (mission line or BCM_ALERT_REQUEST) that cannot be used; `text` is the line."""
+
+    def __init__(self, message: str, text: str = ""):
+        super().__init__(message)
+        self.text = text
 
 
 @dataclass
@@ -91,16 +95,30 @@ class Alert:
     id: str
     range: float = RANGE_UNSET
     cpa_range: float = RANGE_UNSET
+    range_given: bool = False    # said by the alert itself (pBasicContactMgr's defaults fill the rest)
+    cpa_given: bool = False
+    var: str = ""
+    val: str = ""
     on_flags: list[FlagSpec] = field(default_factory=list)
     off_flags: list[FlagSpec] = field(default_factory=list)
     filter: ContactFilter = field(default_factory=ContactFilter)
     source: str = ""
 
-    @property
-    def valid(self) -> bool:
-        return self.range != RANGE_UNSET and bool(self.on_flags or self.off_flags)
+    def ranges(self, defaults: tuple[float, float] | None = None) -> tuple[float, float]:
+        """(alert range, cpa range) in force: the alert's own, else the block's defaults (pBasicContactMgr)."""
+        if defaults is None:
+            return self.range, self.cpa_range
+        rng = self.range if self.range_given else defaults[0]
+        return rng, self.cpa_range if self.cpa_given else max(defaults[1], rng)
+
+    def valid(self, defaults: tuple[float, float] | None = None) -> bool:
+        return self.ranges(defaults)[0] != RANGE_UNSET and bool(self.on_flags or self.off_flags)
 
     def set_range(self, text: str, far: bool) -> None:
+        if far:
+            self.cpa_given = True
+        else:
+            self.range_given = True
         if text.strip().lower() == "off":
             self.cpa_range = RANGE_OFF
             if not far:
@@ -117,8 +135,8 @@ class Alert:
             self.cpa_range = max(self.cpa_range, value)
 
     def configure(self, fields: list[str]) -> None:
-        """Apply `key=value` parts of one alert line (the `id=` part already taken)."""
-        var = val = ""
+        """Apply `key=value` parts of one alert line (the `id=` part already taken). `var` and `val`
+        make one on-flag, even from separate lines (as older missions write them)."""
         for part in fields:
             key, sep, value = part.partition("=")
             key, value = key.strip().lower(), value.strip()
@@ -127,22 +145,24 @@ class Alert:
             if key == "id":
                 continue
             if key == "var":
-                var = value
+                self.var = value
             elif key in ("val", "pattern"):
-                val = value
+                self.val = value
             elif key in ("on_flag", "onflag"):
                 self._add_flag(self.on_flags, value)
             elif key in ("off_flag", "offflag"):
                 for one in value.split("#"):   # several off flags may share one line
                     self._add_flag(self.off_flags, one)
-            elif key in ("alert_range", "cpa_range"):
-                self.set_range(value, far=key == "cpa_range")
+            elif key in ("alert_range", "cpa_range", "range", "range_cpa"):   # range, range_cpa: pBasicContactMgr
+                self.set_range(value, far=key in ("cpa_range", "range_cpa"))
+            elif key in ("range_color", "range_cpa_color", "range_cpa_time"):
+                continue   # drawing, and a CPA time the C++ apps no longer use
             elif key in FILTER_KEYS or key == "strict_ignore":
                 self.filter.add(key, value)
             else:
                 raise AlertError(f"unknown alert component {key!r}")
-        if var and val:
-            self._add_flag(self.on_flags, f"{var}={val}")
+        if self.var and self.val:
+            self._add_flag(self.on_flags, f"{self.var}={self.val}")
 
     @staticmethod
     def _add_flag(flags: list[FlagSpec], text: str) -> None:
@@ -153,13 +173,14 @@ class Alert:
         if flag is not None and flag not in flags:
             flags.append(flag)
 
-    def applies(self, range_actual: float, range_cpa: float) -> bool:
+    def applies(self, range_actual: float, range_cpa: float, defaults: tuple[float, float] | None = None) -> bool:
         """The range test (a range switched off, or not positive, leaves only the filters)."""
-        if self.range <= 0:
+        alert_range, cpa_range = self.ranges(defaults)
+        if alert_range <= 0:
             return True
-        if range_actual > self.cpa_range:
+        if range_actual > cpa_range:
             return False
-        return range_actual <= self.range or range_cpa <= self.range
+        return range_actual <= alert_range or range_cpa <= alert_range
 
 
 @dataclass
@@ -182,9 +203,11 @@ class ContactMgrParams:
     alert_verbose: bool = False
     hold_alerts_for_helm: bool = False
     contact_local_coords: str = "verbatim"
+    default_ranges: tuple[float, float] | None = None   # pBasicContactMgr: ranges of alerts that give none
 
     @classmethod
-    def from_config(cls, cfg) -> "ContactMgrParams":
+    def from_config(cls, cfg, basic: bool = False) -> "ContactMgrParams":
+        """The block; `basic` reads it as pBasicContactMgr does (default alert ranges, contacts kept an hour)."""
         get_all = cfg.get_all if hasattr(cfg, "get_all") else (lambda k: [cfg[k]] if k in cfg else [])
         decay_text = config_str(cfg, "decay", "15,30")
         start, _, end = decay_text.partition(",")
@@ -197,10 +220,11 @@ class ContactMgrParams:
         return cls(
             alerts=get_all("alert"),
             filter_lines=[(key, v) for key in (*FILTER_KEYS, "strict_ignore") for v in get_all(key)],
-            contact_max_age=config_float(cfg, "contact_max_age", 60.0, lo=0.0),
+            contact_max_age=config_float(cfg, "contact_max_age", 3600.0 if basic else 60.0, lo=0.0),
             max_retired_history=int(config_float(cfg, "max_retired_history", 5, lo=1, hi=50)),
             decay=(start_v, end_v),
-            recap_interval=_off_or_float(cfg, "recap_interval", 1.0),
+            recap_interval=_off_or_float(cfg, "recap_interval" if cfg.get("recap_interval") is not None
+                                         else "contacts_recap_interval", 1.0),
             range_report_timeout=config_float(cfg, "range_report_timeout", 10.0, lo=0.0),
             range_report_maxsize=int(config_float(cfg, "range_report_maxsize", 20, lo=0)),
             post_closest_range=config_bool(cfg, "post_closest_range", False),
@@ -211,7 +235,19 @@ class ContactMgrParams:
             alert_verbose=config_bool(cfg, "alert_verbose", False),
             hold_alerts_for_helm=config_bool(cfg, "hold_alerts_for_helm", False),
             contact_local_coords=coords,
+            default_ranges=(_first_float(cfg, BASIC_RANGE_KEYS, 1000.0), _first_float(cfg, BASIC_CPA_KEYS, 1000.0))
+            if basic else None,
         )
+
+
+BASIC_RANGE_KEYS = ("default_alert_range", "alert_range")
+BASIC_CPA_KEYS = ("default_cpa_range", "default_alert_range_cpa", "alert_cpa_range")
+
+
+def _first_float(cfg, keys: tuple[str, ...], default: float) -> float:
+    """The first of several spellings the block gives (all positive numbers), else `default`."""
+    key = next((k for k in keys if cfg.get(k) is not None), None)
+    return default if key is None else config_float(cfg, key, default, lo=0.0)
 
 
 def _off_or_float(cfg, key: str, default: float) -> float:
@@ -288,7 +324,7 @@ class ContactManager:
                 alert.source = source
             alert.configure(parts)
         except (NodeRecordError, AlertError) as exc:
-            raise AlertError(f"alert {text!r}: {exc}") from None
+            raise AlertError(f"alert {text!r}: {exc}", text) from None
         return alert
 
     def on_mail(self, key: str, value, now: float, source: str = "") -> None:
@@ -349,12 +385,12 @@ class ContactManager:
             self.ranges[name] = (actual, extrap, cpa)
 
     def alert_applies(self, name: str, alert: Alert, now: float) -> bool:
-        if not alert.valid or now - self.contact_time(name) > self.params.contact_max_age:
+        if not alert.valid(self.params.default_ranges) or now - self.contact_time(name) > self.params.contact_max_age:
             return False
         if not alert.filter.accepts(self.contacts[name]):
             return False
         actual, _, cpa = self.ranges[name]
-        return alert.applies(actual, cpa)
+        return alert.applies(actual, cpa, self.params.default_ranges)
 
     def check_alerts(self, now: float) -> list[Post]:
         posts: list[Post] = []
@@ -369,8 +405,9 @@ class ContactManager:
                 (self.alerted.add if now_applies else self.alerted.discard)((name, alert_id))
                 if self.params.alert_verbose:
                     actual, _, cpa = self.ranges[name]
+                    alert_range, cpa_range = alert.ranges(self.params.default_ranges)
                     text = (f"contact={name},alert_id={alert_id},{'off-->alerted' if now_applies else 'alerted-->off'},"
-                            f"alert_range={format_number(alert.range, 1)},alert_range_cpa={format_number(alert.cpa_range, 1)},"
+                            f"alert_range={format_number(alert_range, 1)},alert_range_cpa={format_number(cpa_range, 1)},"
                             f"range_actual={actual:.1f}" + (f",range_cpa={cpa:.1f}" if now_applies else ""))
                     posts.append(("ALERT_VERBOSE", text))
         return posts
@@ -466,7 +503,8 @@ NOT_IMPLEMENTED_KEYS = frozenset({
     "default_cpa_range_color", "app_logging", "disable_var", "enable_var", "able_flag", "disable_flag",
     "enable_flag", "early_warning_time", "early_warning_rng", "early_warning_radii", "ewarn_radii_color",
     "early_warning_ref_spd", "early_warning_flag", "cease_warning_flag", "retire_flag", "alert_range",
-    "alert_cpa_range"})
+    "alert_cpa_range", "alert_cpa_time", "default_alert_range_cpa_time"})
+BASIC_KEYS = frozenset({*BASIC_RANGE_KEYS, *BASIC_CPA_KEYS})
 INPUTS = ("NODE_REPORT", "BCM_ALERT_REQUEST", "BCM_REPORT_REQUEST", "BCM_DISPLAY_RADII", "NAV_X", "NAV_Y",
           "NAV_SPEED", "NAV_HEADING", "IVPHELM_STATE")
 
@@ -485,6 +523,7 @@ class ContactMgr(MachineApp):
 
     default_name = "pContactMgrV20"
     inputs = INPUTS
+    basic = False   # read the block as pBasicContactMgr does
     example_config = """\
 ProcessConfig = pContactMgrV20
 {
@@ -546,16 +585,18 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        params = read_params(self.config, ContactMgrParams.from_config)
-        warn_unhandled(self.config, CONTACT_MGR_KEYS | NOT_IMPLEMENTED_KEYS)
-        ignored = sorted({e.key.lower() for e in self.config.entries} & NOT_IMPLEMENTED_KEYS)
+        params = read_params(self.config, lambda cfg: ContactMgrParams.from_config(cfg, self.basic))
+        handled = CONTACT_MGR_KEYS | (BASIC_KEYS if self.basic else frozenset())
+        not_acted_on = NOT_IMPLEMENTED_KEYS - handled
+        warn_unhandled(self.config, handled | not_acted_on)
+        ignored = sorted({e.key.lower() for e in self.config.entries} & not_acted_on)
         if ignored:
             log.warning("%s: parameters accepted but not acted on (display/logging only): %s", self.name, ", ".join(ignored))
         ownship = (self.mission.community if self.mission is not None else "") or "unknown"
         try:
             self.machine = ContactManager(ownship, params, mission_grid(self.mission))
         except AlertError as exc:
-            entry = self.config.entry("alert")
+            entry = next((e for e in self.config.entries if e.key.lower() == "alert" and e.value == exc.text), None)
             raise (entry.source.error(str(exc)) if entry is not None else exc) from None
 
     def status_fields(self) -> dict:
@@ -564,16 +605,38 @@ PUBLICATIONS:
 
 
 class BasicContactMgr(ContactMgr):
-    """pBasicContactMgr: the older name of pContactMgrV20, for older missions (same parameters and
-    variables; reads the `ProcessConfig = pBasicContactMgr` block).
+    """pBasicContactMgr: the older contact manager, for older missions; the same app as pContactMgrV20
+    reading the `ProcessConfig = pBasicContactMgr` block, with that app's two differences: an alert
+    that gives no range uses `default_alert_range` / `default_cpa_range` (1000 m each; also spelt
+    alert_range / alert_cpa_range), alerts may say `range=` and `range_cpa=`, and contacts are kept
+    for `contact_max_age` = 3600 s.
 
     Keeps the contacts heard in NODE_REPORT, posts CONTACTS_LIST, CONTACT_CLOSEST, CONTACTS_RECAP,
     ... and the alerts (`alert = id=..` lines or BCM_ALERT_REQUEST mail) that make the helm spawn a
-    behaviour per contact. See pContactMgrV20.
+    behaviour per contact. See pContactMgrV20 for the rest.
     """
 
     default_name = "pBasicContactMgr"
-    example_config = ContactMgr.example_config.replace("= pContactMgrV20", "= pBasicContactMgr")
+    basic = True
+    example_config = """\
+ProcessConfig = pBasicContactMgr
+{
+  AppTick   = 4
+  CommsTick = 4
+
+  alert = id=avd, var=CONTACT_INFO
+  alert = id=avd, val="name=avd_$[VNAME] # contact=$[VNAME]"
+  alert = id=avd, range=80, range_cpa=95    // or alert_range= / cpa_range=
+
+  default_alert_range = 1000   // m, for alerts that give no range (alias alert_range)
+  default_cpa_range   = 1000   // m, likewise (aliases default_alert_range_cpa, alert_cpa_range)
+
+  contact_max_age = 3600       // s
+  decay           = 15,30
+  contacts_recap_interval = 1  // s (alias of recap_interval)
+  alert_verbose   = false
+}
+"""
 
 
 main = ContactMgr.main

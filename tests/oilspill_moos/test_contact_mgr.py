@@ -112,8 +112,8 @@ def test_alert_ranges_keep_their_order_and_off_leaves_only_filters():
     alert.configure(["cpa_range=30"])                      # cpa_range lowers alert_range
     assert (alert.range, alert.cpa_range) == (30, 30)
     alert.configure(["alert_range=off", "on_flag=SEEN=$[VNAME]"])
-    assert alert.valid and alert.applies(1e6, 1e6)
-    assert not Alert("b").valid                             # no range, no flags
+    assert alert.valid() and alert.applies(1e6, 1e6)
+    assert not Alert("b").valid()                           # no range, no flags
 
 
 def test_alert_lines_with_the_same_id_add_up_and_var_val_make_an_on_flag():
@@ -280,3 +280,25 @@ def test_pbasiccontactmgr_reads_its_own_block(tmp_path):
     app = BasicContactMgr(write_mission(tmp_path, "  contact_max_age = 3600\n", name="pBasicContactMgr"))
     app.on_startup()
     assert app.name == "pBasicContactMgr" and app.machine.params.contact_max_age == 3600
+
+
+def test_pbasiccontactmgr_alerts_without_ranges_use_the_block_defaults(tmp_path):
+    """An old-style block: the alert gives no range, so default_alert_range / alert_cpa_range apply."""
+    app = BasicContactMgr(write_mission(tmp_path, "  alert = id=avd, var=CONTACT_INFO\n"
+                                                  '  alert = id=avd, val="name=avd_$[VNAME] # contact=$[VNAME]"\n'
+                                                  "  alert_range = 40\n  alert_cpa_range = 60\n", name="pBasicContactMgr"))
+    app.on_startup()
+    mgr = app.machine
+    assert mgr.params.default_ranges == (40, 60) and mgr.params.contact_max_age == 3600
+    mgr.on_mail("NODE_REPORT", report("ben", 55, 0, 270, 1, time=0), 0)    # 55 m, coming straight in
+    assert values(mgr.iterate(0), "CONTACT_INFO") == ["name=avd_ben # contact=ben"]
+    mgr.configure_alert("id=far, range=10, on_flag=FAR=$[VNAME]", "")      # its own range; cpa from the default
+    assert mgr.alerts["far"].ranges(mgr.params.default_ranges) == (10, 60)
+    assert ContactMgrParams.from_config({}, basic=True).default_ranges == (1000, 1000)
+    assert ContactMgrParams.from_config({}).default_ranges is None
+
+
+def test_a_bad_alert_line_is_named(tmp_path):
+    mission = write_mission(tmp_path, "  alert = id=a, var=X, val=1, alert_range=5\n  alert = id=b, alert_range=far\n")
+    with pytest.raises(MissionFileError, match=r"abe\.moos:8: .*alert_range='far'"):
+        ContactMgr(mission).on_startup()
