@@ -5,11 +5,13 @@ from __future__ import annotations
 import asyncio
 
 import pytest
+from hypothesis import given, strategies as st
 
 from helpers import async_wait_until, start_moosdb
 
 from moosdb_py.client import MOOSClient
 from oilspill_moos.field.message_handler import Delivery, MessageHandler, MessageInbox
+from oilspill_moos.node_record import NodeMessage
 
 
 @pytest.mark.parametrize("text, delivery", [
@@ -23,6 +25,19 @@ from oilspill_moos.field.message_handler import Delivery, MessageHandler, Messag
 ])
 def test_messages_for_this_vehicle_are_posted(text, delivery):
     assert MessageInbox("ben").receive(text) == delivery
+
+
+name = st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,11}", fullmatch=True)
+text = st.text(st.characters(blacklist_characters='"', blacklist_categories=("Cs", "Cc")), min_size=1,
+               max_size=40).filter(lambda v: v == v.strip() and v)
+
+
+@given(name, name, name, text)
+def test_a_quoted_string_value_reads_back_whole(src, dest, var, value):
+    """Commas, equals signs and `#` inside a quoted string_val belong to the value."""
+    message = NodeMessage.parse(f'src_node={src},dest_node={dest},var_name={var},string_val="{value}"')
+    assert (message.src_node, message.dest_node, message.var_name) == (src, dest, var)
+    assert message.value == value and message.length() == max(2, len(value))
 
 
 def test_strict_addressing_and_the_summary():
