@@ -11,7 +11,7 @@ import math
 import shlex
 from dataclasses import dataclass
 
-from behaviors.logic import as_number
+from moosdb_py.formats import FormatError, parse_number, parse_pairs
 
 
 class NodeRecordError(ValueError):
@@ -43,10 +43,10 @@ def _number(fields: dict[str, str], key: str, text: str, default: float | None =
     raw = fields.get(key)
     if raw is None or raw == "":
         return default
-    value = as_number(raw)
-    if value is None:
-        raise NodeRecordError(f"{key.upper()}={raw!r} is not a number in {text!r}")
-    return value
+    try:
+        return parse_number(raw)
+    except FormatError:
+        raise NodeRecordError(f"{key.upper()}={raw!r} is not a number in {text!r}") from None
 
 
 @dataclass(frozen=True)
@@ -69,8 +69,10 @@ class NodeRecord:
     @classmethod
     def parse(cls, text: str, grid=None) -> "NodeRecord":
         """Read a report; one with only LAT/LON is placed with `grid` (the mission's LocalGrid)."""
-        fields = {k: v for k, v in (item.partition("=")[::2] for item in text.split(",")) if k}
-        fields = {k.strip().lower(): v.strip() for k, v in fields.items()}
+        try:
+            fields = parse_pairs(text)
+        except FormatError as exc:
+            raise NodeRecordError(f"NODE_REPORT {text!r}: {exc}") from None
         name = fields.get("name", "")
         if not name:
             raise NodeRecordError(f"NODE_REPORT without NAME: {text!r}")
@@ -151,9 +153,10 @@ class NodeMessage:
         double_text = fields.get("double_val")
         double_val = None
         if double_text is not None:
-            double_val = as_number(double_text)
-            if double_val is None:
-                raise NodeRecordError(f"double_val={double_text!r} is not a number in {text!r}")
+            try:
+                double_val = parse_number(double_text)
+            except FormatError:
+                raise NodeRecordError(f"double_val={double_text!r} is not a number in {text!r}") from None
         message = cls(src_node=fields.get("src_node", ""), dest_node=fields.get("dest_node", ""),
                       dest_group=fields.get("dest_group", ""), var_name=fields.get("var_name", ""),
                       string_val=fields.get("string_val"), double_val=double_val, text=text)

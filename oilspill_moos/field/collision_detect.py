@@ -13,8 +13,8 @@ import math
 from dataclasses import dataclass, field
 
 from behaviors.flags import FlagError, FlagSpec, parse_flag
-from behaviors.geometry import fmt_num
 from behaviors.logic import Condition, ConditionError, condition_variables, parse_condition
+from moosdb_py.formats import format_number
 from oilspill_moos.app_config import ConfigValueError, config_bool, config_float, read_params, warn_unhandled
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
@@ -210,7 +210,7 @@ class CollisionMonitor:
             elif isinstance(value, str):
                 for macro, name in names.items():
                     value = value.replace(macro, name)
-                value = value.replace("$CPA", fmt_num(event.cpa, 4))
+                value = value.replace("$CPA", format_number(event.cpa, 4))
             posts.append((var, value))
         return posts
 
@@ -234,19 +234,21 @@ class CollisionMonitor:
                 posts.append((f"{event.rank.upper()}_TOTAL", float(self.totals[event.rank])))
             if event.rank != "encounter" or self.params.report_all_encounters:
                 posts.append(("UCD_REPORT", f"vname1={event.vname1},vname2={event.vname2},"
-                                            f"cpa={fmt_num(event.cpa, 3)},rank={event.rank}"))
+                                            f"cpa={format_number(event.cpa, 3)},rank={event.rank}"))
             posts += self.flag_posts(event)
             if self.params.pulse_render and event.rank != "encounter":
                 color = "red" if event.rank == "collision" else "yellow"
-                posts.append(("VIEW_RANGE_PULSE", f"x={fmt_num(event.x, 2)},y={fmt_num(event.y, 2)},"
-                              f"radius={fmt_num(self.params.pulse_range)},duration={fmt_num(self.params.pulse_duration)},"
-                              f"fill=0.25,fill_color={color},edge_color={color},time={fmt_num(now, 2)},edge_size=1"))
+                posts.append(("VIEW_RANGE_PULSE", f"x={format_number(event.x, 2)},y={format_number(event.y, 2)},"
+                              f"radius={format_number(self.params.pulse_range, 3)},"
+                              f"duration={format_number(self.params.pulse_duration, 3)},fill=0.25,fill_color={color},"
+                              f"edge_color={color},time={format_number(now, 2)},edge_size=1"))
         return posts
 
     def params_summary(self) -> str:
         p = self.params
-        return (f"collision_range={fmt_num(p.collision_range)},near_miss_range={fmt_num(p.near_miss_range)},"
-                f"encounter_range={fmt_num(p.encounter_range)}")
+        return ",".join(f"{key}={format_number(value, 3)}" for key, value in (
+            ("collision_range", p.collision_range), ("near_miss_range", p.near_miss_range),
+            ("encounter_range", p.encounter_range)))
 
 
 COLLISION_KEYS = frozenset({

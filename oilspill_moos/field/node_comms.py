@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from moosdb_py.formats import parse_pairs
 from oilspill_moos.app_config import (
-    ConfigValueError, config_bool, config_float, config_str, parse_pairs, read_params, warn_unhandled)
+    ConfigValueError, config_bool, config_float, config_str, read_params, warn_unhandled)
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import NodeMessage, NodeRecord, NodeRecordError

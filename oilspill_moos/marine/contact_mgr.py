@@ -19,9 +19,9 @@ import shapely
 
 from behaviors.flags import FlagError, FlagSpec, expand_macros, parse_flag
 from behaviors.geometry import GeometryError, parse_polygon
-from behaviors.logic import as_number
+from moosdb_py.formats import FormatError, format_number, is_number, parse_bool
 from oilspill_moos.app_config import (
-    ConfigValueError, config_bool, config_float, config_str, format_number, read_params, warn_unhandled)
+    ConfigValueError, config_bool, config_float, config_str, read_params, warn_unhandled)
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import (
@@ -55,10 +55,10 @@ class ContactFilter:
 
     def add(self, key: str, value: str) -> None:
         if key == "strict_ignore":
-            word = as_bool(value)
-            if word is None:
-                raise AlertError(f"strict_ignore={value!r} is not true or false")
-            self.strict_ignore = word
+            try:
+                self.strict_ignore = parse_bool(value)
+            except FormatError as exc:
+                raise AlertError(f"strict_ignore: {exc}") from None
         elif key.endswith("_region"):
             try:
                 self.regions.setdefault(key, []).append(shapely.Polygon(parse_polygon(value)))
@@ -81,11 +81,6 @@ class ContactFilter:
             return False
         inside = self.regions.get("match_region")
         return not inside or any(poly.covers(point) for poly in inside)
-
-
-def as_bool(text: str) -> bool | None:
-    word = text.strip().lower()
-    return True if word in ("true", "yes", "on", "1") else False if word in ("false", "no", "off", "0") else None
 
 
 @dataclass
@@ -124,7 +119,7 @@ class Alert:
             if not far:
                 self.range = RANGE_OFF
             return
-        value = as_number(text)
+        value = float(text) if is_number(text) else None
         if value is None or value < 0:
             raise AlertError(f"{'cpa_range' if far else 'alert_range'}={text!r} is not a range >= 0")
         if far:
@@ -211,7 +206,7 @@ class ContactMgrParams:
         get_all = cfg.get_all if hasattr(cfg, "get_all") else (lambda k: [cfg[k]] if k in cfg else [])
         decay_text = config_str(cfg, "decay", "15,30")
         start, _, end = decay_text.partition(",")
-        start_v, end_v = as_number(start), as_number(end)
+        start_v, end_v = (float(t) if is_number(t) else None for t in (start, end))
         if start_v is None or end_v is None or not 0 <= start_v <= end_v:
             raise ConfigValueError("decay", f"expected 'start,end' seconds with 0 <= start <= end, got {decay_text!r}")
         coords = config_str(cfg, "contact_local_coords", "verbatim").lower()
@@ -360,7 +355,8 @@ class ContactManager:
 
     def on_report_request(self, text: str, now: float) -> None:
         fields = quoted_pairs(text)
-        var, rng = fields.get("var", ""), as_number(fields.get("range", ""))
+        var, rng = fields.get("var", ""), fields.get("range", "")
+        rng = float(rng) if is_number(rng) else None
         unknown = set(fields) - {"var", "range", "group", "type", "refresh", "reason"}
         if not var or " " in var or rng is None or rng < 0 or unknown:
             raise AlertError(f"BCM_REPORT_REQUEST needs var=<VAR>,range=<metres>[,group,type,refresh]: {text!r}")
