@@ -23,11 +23,11 @@ from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import config_float, config_str
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.response.planner import (
+    PLANNERS,
     Plan,
     PlanError,
     choose_forecast,
     containment_region,
-    plan_containment,
     reshare,
     transit_route,
 )
@@ -173,6 +173,7 @@ class Settings:
     """pPathAssign's parameters (see `PathAssign.example_config` for their meaning)."""
 
     standoff: float = 50.0
+    patrol: str = "arcs"          # "arcs": each vessel its own arc, back and forth; "loop": all the whole loop
     coordinate_timeout: float = 30.0
     arrival_timeout: float = 600.0
     node_timeout: float = 20.0
@@ -213,6 +214,7 @@ class Coordinator:
     plan: Plan | None = None
     reported: dict[str, tuple[float, float]] = field(default_factory=dict)
     arrived: set[str] = field(default_factory=set)
+    patrolling: set[str] = field(default_factory=set)  # sent their OIL_PATH_UPDATES for the plan in force
     phase_started: float = 0.0
     coordinate_deadline: float = math.inf
     outbox: list[tuple[str, str | float]] = field(default_factory=list)
@@ -307,10 +309,13 @@ class Coordinator:
                 self.on_reached(name, now)
 
     def on_reached(self, name: str, now: float) -> None:
-        """REACHED_STARTING_POSITION from `name`; the last arrival starts the containment loops."""
+        """REACHED_STARTING_POSITION from `name`: a vessel with an arc of its own starts patrolling it
+        at once; the last arrival starts the phase OIL-PATH (and, in loop mode, everyone's loops)."""
         if self.phase != STARTING_POSITION or not self.plan or name not in self.plan.starts:
             return
         self.arrived.add(name)
+        if self.plan.arcs:
+            self._send_patrol(name)
         if set(self.plan.starts) <= self.arrived:
             self._begin_oil_path(now)
 
@@ -378,12 +383,13 @@ class Coordinator:
 
     def _choose(self, positions: dict[str, tuple[float, float]], age_h: float) -> tuple[float, Plan]:
         """With several horizons of one forecast on offer, aim at the one matching the fleet's arrival."""
+        planner = PLANNERS[self.settings.patrol]
         if len(self.forecasts) == 1:
             ((horizon, boundary),) = self.forecasts.items()
-            return horizon, plan_containment(containment_region(boundary.polygon, self.settings.standoff), positions)
+            return horizon, planner(containment_region(boundary.polygon, self.settings.standoff), positions)
         choice = choose_forecast({h: b.polygon for h, b in self.forecasts.items()}, positions,
                                  {name: self.settings.transit_speed for name in positions},
-                                 self.settings.standoff, age_h)
+                                 self.settings.standoff, age_h, planner)
         return choice.horizon_h, choice.plan
 
     def _post_boundary(self, horizon: float) -> None:
@@ -396,7 +402,7 @@ class Coordinator:
 
     def _assign_starts(self, plan: Plan, now: float) -> None:
         self.plan = plan
-        self.arrived = set()
+        self.arrived, self.patrolling = set(), set()
         self._set_phase(STARTING_POSITION, now)
         self._post("VIEW_POLYGON", f"pts={{{format_points(plan.region.exterior.coords[:-1])}}},"
                                    f"label=standoff,edge_color=orange")
@@ -411,19 +417,23 @@ class Coordinator:
             vehicle = self.vehicles[name]
             if vehicle.x is not None and math.hypot(vehicle.x - plan.starts[name][0],
                                                     vehicle.y - plan.starts[name][1]) <= self.settings.capture_radius:
-                self.arrived.add(name)
-        if set(plan.starts) <= self.arrived:
-            self._begin_oil_path(now)
+                self.on_reached(name, now)
 
     def _begin_oil_path(self, now: float) -> None:
         self._set_phase(OIL_PATH, now)
-        speed = f"#speed={self.settings.loop_speed:g}" if self.settings.loop_speed > 0 else ""
         for name in self.plan.starts:
-            suffix = name.upper()
-            self._post(f"OIL_PATH_UPDATES_{suffix}",
-                       f"points={format_points(self.plan.loop(name))}#repeat=forever{speed}")
-            self._post(f"STATION_KEEP_{suffix}", "false")
-            self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
+            self._send_patrol(name)
+
+    def _send_patrol(self, name: str) -> None:
+        """The waypoints `name` repeats for ever: its arc back and forth, or the whole loop."""
+        if name in self.patrolling:
+            return
+        self.patrolling.add(name)
+        speed = f"#speed={self.settings.loop_speed:g}" if self.settings.loop_speed > 0 else ""
+        suffix = name.upper()
+        self._post(f"OIL_PATH_UPDATES_{suffix}", f"points={format_points(self.plan.loop(name))}#repeat=forever{speed}")
+        self._post(f"STATION_KEEP_{suffix}", "false")
+        self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
 
     def _reshare(self, now: float) -> None:
         """Spread the loop over whoever is reporting now; they go to new starts, then loop again."""
@@ -508,8 +518,8 @@ MAX_LINE = 1 << 20  # a forecast outline of ~20000 vertices; longer lines are re
 class PathAssign(MOOSApp):
     """pPathAssign: receives predicted spill boundaries over TCP (one JSON or pts={} line each,
     answered `OK <seq>` or `ERR <reason>`) and leads the fleet through STATION-KEEPING ->
-    STARTING-POSITION -> OIL-PATH around the stand-off perimeter, re-sharing the loop when a
-    vehicle drops out or comes back."""
+    STARTING-POSITION -> OIL-PATH around the stand-off perimeter (each vessel patrolling its own
+    arc, or all running the whole loop), re-sharing it when a vehicle drops out or comes back."""
 
     default_name = "pPathAssign"
     example_config = """\
@@ -522,6 +532,7 @@ ProcessConfig = pPathAssign
   boundary_port       = 9100        // its port
   fleet               =             // expected vehicles, abe:ben:cal; empty: whoever reports
   standoff            = 50          // metres the loop stays outside the predicted boundary
+  patrol              = arcs        // arcs: each vessel its own arc, back and forth; loop: all the whole loop
   coordinate_timeout  = 30          // s to wait for every VEHICLE_COORDINATES before planning
   arrival_timeout     = 600         // s after which the loops start even if someone is not at its point
   node_timeout        = 20          // s without NODE_REPORT before a vehicle is dropped
@@ -573,6 +584,7 @@ PUBLICATIONS:
         fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
         self.coordinator = Coordinator(Settings(
             standoff=config_float(cfg, "standoff", 50.0, lo=0),
+            patrol=self._patrol(),
             coordinate_timeout=config_float(cfg, "coordinate_timeout", 30.0, lo=0),
             arrival_timeout=config_float(cfg, "arrival_timeout", 600.0, lo=0),
             node_timeout=config_float(cfg, "node_timeout", 20.0, lo=0),
@@ -591,6 +603,12 @@ PUBLICATIONS:
         lat = self.mission.lat_origin if self.mission is not None else None
         lon = self.mission.long_origin if self.mission is not None else None
         self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
+
+    def _patrol(self) -> str:
+        patrol = config_str(self.config, "patrol", "arcs").lower()
+        if patrol not in PLANNERS:
+            raise ValueError(f"patrol: {patrol!r} must be one of {', '.join(PLANNERS)}")
+        return patrol
 
     def _horizons(self) -> tuple[float, ...]:
         text = config_str(self.config, "forecast_horizons", "3:7:11:15")
