@@ -1,7 +1,7 @@
 """BHV_ConstantHeading: hold one heading (a wrapped peak over course only)."""
 from __future__ import annotations
 
-from .bhv_constant_speed import OneVarPeak
+from .bhv_constant_speed import OneVarPeak, peak_params
 
 
 class BHV_ConstantHeading(OneVarPeak):
@@ -10,6 +10,4 @@ class BHV_ConstantHeading(OneVarPeak):
     decision_var = "course"
     value_param = "heading"
     value_wrap = True
-    peakwidth = 10.0
-    basewidth = 170.0
-    summitdelta = 25.0
+    params = peak_params("heading", wrap=True, peakwidth=10, basewidth=170, summitdelta=25)

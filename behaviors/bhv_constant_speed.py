@@ -1,9 +1,22 @@
 """BHV_ConstantSpeed and the shared one-variable peak objective it (and BHV_ConstantHeading) build."""
 from __future__ import annotations
 
-from .behavior import IvPBehavior, parse_number
+from .behavior import IvPBehavior
+from .geometry import fmt_num
 from .ivp_function import IvPFunction
+from .parameters import NON_NEGATIVE, NUMBER, ParamSpec, attr
 from .zaic import PeakComponent, zaic_peak
+
+
+def peak_params(value_param: str, wrap: bool, peakwidth: float, basewidth: float,
+                summitdelta: float) -> tuple[ParamSpec, ...]:
+    """The desired value and the peak's shape, with the type's own defaults."""
+    return (
+        attr(value_param, "desired", NUMBER if wrap else NON_NEGATIVE, doc=f"the desired {value_param}"),
+        attr("peakwidth", "peakwidth", NON_NEGATIVE, fmt_num(peakwidth), "width of the flat top"),
+        attr("basewidth", "basewidth", NON_NEGATIVE, fmt_num(basewidth), "width of each falling side"),
+        attr("summitdelta", "summitdelta", NON_NEGATIVE, fmt_num(summitdelta), "utility drop across the top"),
+    )
 
 
 class OneVarPeak(IvPBehavior):
@@ -12,9 +25,6 @@ class OneVarPeak(IvPBehavior):
     decision_var = "speed"
     value_param = "speed"
     value_wrap = False
-    peakwidth = 0.0
-    basewidth = 0.0
-    summitdelta = 0.0
     # These behaviours time out at once unless given a `duration` (or `duration = no-time-limit`),
     # as in MOOS-IvP: they are meant to be bounded in time.
     default_duration = 0.0
@@ -22,23 +32,8 @@ class OneVarPeak(IvPBehavior):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.desired: float | None = None
-        self.peakwidth, self.basewidth, self.summitdelta = (type(self).peakwidth, type(self).basewidth,
-                                                            type(self).summitdelta)
         self.domain_vars = (self.decision_var,)
         self.duration.limit = self.default_duration
-
-    def set_param(self, key: str, value: str) -> bool:
-        if key == self.value_param:
-            self.desired = parse_number(value, key, 0 if not self.value_wrap else None)
-        elif key == "peakwidth":
-            self.peakwidth = parse_number(value, key, 0)
-        elif key == "basewidth":
-            self.basewidth = parse_number(value, key, 0)
-        elif key == "summitdelta":
-            self.summitdelta = parse_number(value, key, 0)
-        else:
-            return False
-        return True
 
     def on_run_state(self) -> IvPFunction | None:
         if self.desired is None:
@@ -60,4 +55,4 @@ class BHV_ConstantSpeed(OneVarPeak):
 
     type_name = "BHV_ConstantSpeed"
     default_name = "bhv_constant_speed"
-    basewidth = 0.2
+    params = peak_params("speed", wrap=False, peakwidth=0, basewidth=0.2, summitdelta=0)
