@@ -29,8 +29,8 @@ from oilspill_moos.forecaster.assimilate import SensorReadings, reanchor
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.forecaster.features import plane_to_lonlat, to_plane
 from oilspill_moos.forecaster.operational import Forecaster
-from oilspill_moos.oil_sensor import SensorModel
-from oilspill_moos.planner import containment_region
+from oilspill_moos.response.oil_sensor import SensorModel
+from oilspill_moos.response.planner import containment_region
 
 LAST_SATELLITE_H = 17
 CYCLES_H = (20, 24, 28, 32)

@@ -31,7 +31,7 @@ from moosdb_py.nsplug import preprocess
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.path_assign import (
+from oilspill_moos.response.path_assign import (
     OIL_PATH,
     STARTING_POSITION,
     STATION_KEEPING,
@@ -39,7 +39,7 @@ from oilspill_moos.path_assign import (
     parse_polygon_spec,
     parse_report,
 )
-from oilspill_moos.planner import containment_region
+from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
 REPO = Path(__file__).resolve().parents[1]

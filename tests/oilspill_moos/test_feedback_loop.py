@@ -24,8 +24,8 @@ from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.forecaster.push import push_lines
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oil_fusion import ScenarioMap
-from oilspill_moos.path_assign import OIL_PATH, parse_report
+from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.path_assign import OIL_PATH, parse_report
 
 WARP = 12.0
 TIMEOUT = 40.0

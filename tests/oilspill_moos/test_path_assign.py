@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.planner import containment_region
-from oilspill_moos.path_assign import (
+from oilspill_moos.response.planner import containment_region
+from oilspill_moos.response.path_assign import (
     OIL_PATH,
     STARTING_POSITION,
     STATION_KEEPING,
@@ -258,7 +258,7 @@ import asyncio  # noqa: E402
 
 from helpers import async_wait_until  # noqa: E402
 from moosdb_py.client import MOOSClient  # noqa: E402
-from oilspill_moos.path_assign import MAX_LINE, PathAssign  # noqa: E402
+from oilspill_moos.response.path_assign import MAX_LINE, PathAssign  # noqa: E402
 
 
 def shore_mission(tmp_path, port):

@@ -22,7 +22,7 @@ from behaviors.geometry import fmt_num
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import config_float, config_str
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.planner import (
+from oilspill_moos.response.planner import (
     Plan,
     PlanError,
     choose_forecast,
