@@ -18,6 +18,7 @@ from .bhv_constant_depth import BHV_ConstantDepth
 from .bhv_constant_heading import BHV_ConstantHeading
 from .bhv_constant_speed import BHV_ConstantSpeed
 from .bhv_loiter import BHV_Loiter
+from .bhv_op_region import BHV_OpRegion
 from .bhv_station_keep import BHV_StationKeep
 from .bhv_waypoint import BHV_Waypoint
 
@@ -25,7 +26,7 @@ ENTRY_POINT_GROUP = "behaviors.bhv"
 BUILTIN_TYPES: dict[str, type[IvPBehavior]] = {
     cls.type_name.lower(): cls
     for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth,
-                BHV_Loiter)
+                BHV_Loiter, BHV_OpRegion)
 }
 
 
