@@ -184,6 +184,7 @@ class IvPBehavior:
     default_name = "bhv"
     info_vars: tuple[str, ...] = ()
     domain_vars: tuple[str, ...] = ("course", "speed")
+    uses_contacts = False    # reads other vehicles' NODE_REPORTs (`<NAME>_NAV_*`) from the info buffer
     parameters: dict[str, ParamSpec] = {}
     attr_specs: dict[str, ParamSpec] = {}
     params: tuple[ParamSpec, ...] = (
@@ -312,7 +313,7 @@ class IvPBehavior:
         self.state = state
         status = f"name={self.name}" + (f",pc={failed}" if failed is not None and state == "idle" else "")
         status += f",updates={self.good_updates}/{self.good_updates + self.bad_updates},state={state}"
-        self.post("BHV_STATUS", status + (f",pwt={self.pwt:g}" if fn is not None else ""))
+        self.post("BHV_STATUS", status + (f",pwt={fn.pwt:g}" if fn is not None else ""))
         return fn
 
     def _idle(self, prev: str) -> None:
@@ -484,6 +485,9 @@ class IvPBehavior:
         return None
 
     # ---- life cycle hooks (subclasses) ------------------------------------------------
+    def on_helm_start(self) -> None:
+        """Called once when the helm starts, templates included (e.g. to request contact alerts)."""
+
     def on_every_state(self) -> None:
         pass
 

@@ -14,6 +14,7 @@ from moosdb_py.source import MissionFileError
 
 from .behavior import InfoBuffer, IvPBehavior, Post
 from .bhv_file import BehaviorSpec, BhvFile
+from .contacts import node_report_values
 from .domain import IvPDomain
 from .ivp_function import IvPFunction
 from .logic import as_number
@@ -103,6 +104,8 @@ class Helm:
         names += [i.var for i in self.initializes if i.deferred]
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
             names += bhv.condition_vars()
+            if bhv.uses_contacts:
+                names.append("NODE_REPORT")
         return list(dict.fromkeys(names))
 
     def startup(self, now: float) -> list[HelmPost]:
@@ -118,6 +121,9 @@ class Helm:
         out.append(("IVPHELM_MODESET", modeset, ""))
         out.append(("IVPHELM_STATEVARS", ",".join(self.state_vars()), ""))
         out += [("IVPHELM_REGISTER", v, "") for v in self.subscriptions()]
+        for bhv in self.behaviors + [t for _, t in self.templates.values()]:
+            bhv.on_helm_start()
+            out += [(p.var, p.value, "") for p in bhv.take_posts()]
         return out
 
     def state_vars(self) -> list[str]:
@@ -144,6 +150,9 @@ class Helm:
                     self.status = "DRIVE"
                 elif text == "true" and self.allow_park:
                     self.status = "PARK"
+        if var == "NODE_REPORT":
+            for name, field in (node_report_values(str(value)) or {}).items():
+                self.info.set(name, field, time)
         if var == "HELM_MAP_CLEAR" and time - self.last_map_clear >= 2.0:
             self.last_map_clear = time
             self.last_sent.clear()

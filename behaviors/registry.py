@@ -14,6 +14,7 @@ from __future__ import annotations
 from importlib import metadata
 
 from .behavior import IvPBehavior
+from .bhv_avoid_collision import BHV_AvoidCollision
 from .bhv_constant_depth import BHV_ConstantDepth
 from .bhv_constant_heading import BHV_ConstantHeading
 from .bhv_constant_speed import BHV_ConstantSpeed
@@ -26,7 +27,7 @@ ENTRY_POINT_GROUP = "behaviors.bhv"
 BUILTIN_TYPES: dict[str, type[IvPBehavior]] = {
     cls.type_name.lower(): cls
     for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth,
-                BHV_Loiter, BHV_OpRegion)
+                BHV_Loiter, BHV_OpRegion, BHV_AvoidCollision)
 }
 
 

@@ -1,12 +1,16 @@
-"""Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5).
+"""Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5), with 10
+spawned BHV_AvoidCollision behaviours (goal: under 5 ms), and a head-on encounter at 2 m/s.
 
 Each behaviour is a BHV_Waypoint or BHV_StationKeep over the usual course:0:359:360 x speed:0:4:41
 domain, all active at once. The figure is the CPU time (process_time) of one Helm.iterate: on this
-shared 2-core machine wall time mostly measures the other processes.
+shared 2-core machine wall time mostly measures the other processes. The head-on run reports the
+closest approach (goal: at least min_util_cpa_dist) and the time lost against the straight path.
 """
 from __future__ import annotations
 
+import math
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -27,29 +31,113 @@ def bhv_text(n: int) -> str:
     return "\n".join(blocks)
 
 
-def bench(n: int, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
-    """(best, median) of the per-batch mean CPU time of one iteration, in ms."""
-    domain = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
-    lines = [SourceLine(t, Path("bench.bhv"), i) for i, t in enumerate(bhv_text(n).splitlines(), 1)]
-    helm = Helm([parse_bhv(lines)], domain, "bench", active_start=True)
+AVOID_TEMPLATE = """Behavior = BHV_AvoidCollision
+{
+  name = avd_
+  pwt = 300
+  updates = CONTACT_INFO
+  templating = spawn
+  contact = to-be-set
+  pwt_outer_dist = 100
+  pwt_inner_dist = 30
+  completed_dist = 150
+  min_util_cpa_dist = 10
+  max_util_cpa_dist = 30
+  pwt_grade = linear
+}
+Behavior = BHV_Waypoint
+{
+  name = transit
+  speed = 2
+  point = 0,400
+}
+"""
+DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
+
+
+def make_helm(text: str) -> Helm:
+    lines = [SourceLine(t, Path("bench.bhv"), i) for i, t in enumerate(text.splitlines(), 1)]
+    helm = Helm([parse_bhv(lines)], DOMAIN, "bench", active_start=True)
     helm.startup(0.0)
-    for var, value in dict(NAV_X=5.0, NAV_Y=-30.0, NAV_HEADING=45.0, NAV_SPEED=1.5).items():
-        helm.on_mail(var, value, 0.0)
-    t = 2.0
-    helm.iterate(t)
-    assert sum(b.state == "active" for b in helm.behaviors) == n
+    return helm
+
+
+def report(name: str, x: float, y: float, hdg: float, spd: float, t: float) -> str:
+    return f"NAME={name},X={x:.2f},Y={y:.2f},SPD={spd},HDG={hdg},DEP=0,TIME={t:.2f}"
+
+
+def time_iterations(helm: Helm, t: float, batches: int, per_batch: int, mail) -> tuple[float, float]:
+    """(best, median) of the per-batch mean CPU time of one iteration, in ms."""
     means = []
     for _ in range(batches):
         start = time.process_time()
         for _ in range(per_batch):
             t += 0.25
-            helm.on_mail("NAV_X", 5.0 + 0.01 * t, t)
+            mail(t)
             helm.iterate(t)
         means.append((time.process_time() - start) / per_batch * 1e3)
     return min(means), statistics.median(means)
+
+
+def bench(n: int, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
+    helm = make_helm(bhv_text(n))
+    for var, value in dict(NAV_X=5.0, NAV_Y=-30.0, NAV_HEADING=45.0, NAV_SPEED=1.5).items():
+        helm.on_mail(var, value, 0.0)
+    helm.iterate(2.0)
+    assert sum(b.state == "active" for b in helm.behaviors) == n
+    return time_iterations(helm, 2.0, batches, per_batch, lambda t: helm.on_mail("NAV_X", 5.0 + 0.01 * t, t))
+
+
+def contacts_at(t: float, n: int) -> list[str]:
+    """n contacts on a 60 m ring about ownship, each heading across it at 1.5 m/s."""
+    return [report(f"c{i}", 60 * math.sin(2 * math.pi * i / n), 60 * math.cos(2 * math.pi * i / n),
+                   (360 * i / n + 90) % 360, 1.5, t) for i in range(n)]
+
+
+def bench_avoidance(n: int = 10, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
+    helm = make_helm(AVOID_TEMPLATE)
+    for var, value in dict(NAV_X=0.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=2.0).items():
+        helm.on_mail(var, value, 0.0)
+    for i, text in enumerate(contacts_at(0.0, n)):
+        helm.on_mail("NODE_REPORT", text, 0.0)
+        helm.on_mail("CONTACT_INFO", f"name=c{i} # contact=c{i}", 0.0)
+    helm.iterate(2.0)
+    assert sum(b.state == "active" and b.name.startswith("avd_") for b in helm.behaviors) == n
+
+    def mail(t: float) -> None:
+        for text in contacts_at(t, n):
+            helm.on_mail("NODE_REPORT", text, t)
+    return time_iterations(helm, 2.0, batches, per_batch, mail)
+
+
+def head_on(avoid: bool) -> tuple[float, float]:
+    """Ownship transits 0,0 -> 0,400 at 2 m/s; a contact comes south at 2 m/s on the same line and does
+    not give way. (closest approach in m, time to reach y = 390 in s)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "behaviors"))
+    from helm_sim import Boat, run
+    transit_only = AVOID_TEMPLATE[AVOID_TEMPLATE.index("Behavior = BHV_Waypoint"):]
+    helm = make_helm(AVOID_TEMPLATE if avoid else transit_only)
+    boat, t, closest, alerted = Boat(0, 0, 0), 0.0, math.inf, False
+    while boat.y < 390 and t < 600:
+        cn_y = 300 - 2 * t
+        helm.on_mail("NODE_REPORT", report("henry", 0, cn_y, 180, 2, t), t)
+        if not alerted and math.hypot(boat.x, boat.y - cn_y) < 100:
+            helm.on_mail("CONTACT_INFO", "name=henry # contact=henry", t)
+            alerted = True
+        run(helm, boat, 0.25, start=t)
+        closest = min(closest, math.hypot(boat.x, boat.y - cn_y))
+        t += 0.25
+    return closest, t
 
 
 if __name__ == "__main__":
     for n in (1, 5, 20):
         best, median = bench(n)
         print(f"helm iteration, {n:2d} active behaviours: {best:6.2f} ms CPU (median of batches {median:6.2f} ms)")
+    best, median = bench_avoidance()
+    print(f"helm iteration, 10 spawned BHV_AvoidCollision + 1 waypoint: {best:6.2f} ms CPU "
+          f"(median of batches {median:6.2f} ms; goal < 5 ms)")
+    (cpa, t_avoid), (cpa_none, t_straight) = head_on(True), head_on(False)
+    print(f"head-on at 2 m/s: closest approach {cpa:.1f} m with avoidance (min_util_cpa_dist 10 m; "
+          f"{cpa_none:.1f} m without), {t_avoid - t_straight:.1f} s lost against the straight path "
+          f"({t_straight:.1f} s)")
