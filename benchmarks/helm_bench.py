@@ -19,6 +19,9 @@ from behaviors.domain import IvPDomain, parse_domain_line
 from behaviors.helm import Helm
 from moosdb_py.source import SourceLine
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "behaviors"))
+from helm_sim import AVOID_MISSION, head_on, node_report as report  # noqa: E402  (the test support module)
+
 
 def bhv_text(n: int) -> str:
     blocks = []
@@ -31,27 +34,6 @@ def bhv_text(n: int) -> str:
     return "\n".join(blocks)
 
 
-AVOID_TEMPLATE = """Behavior = BHV_AvoidCollision
-{
-  name = avd_
-  pwt = 300
-  updates = CONTACT_INFO
-  templating = spawn
-  contact = to-be-set
-  pwt_outer_dist = 100
-  pwt_inner_dist = 30
-  completed_dist = 150
-  min_util_cpa_dist = 10
-  max_util_cpa_dist = 30
-  pwt_grade = linear
-}
-Behavior = BHV_Waypoint
-{
-  name = transit
-  speed = 2
-  point = 0,400
-}
-"""
 DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
 
 
@@ -60,10 +42,6 @@ def make_helm(text: str) -> Helm:
     helm = Helm([parse_bhv(lines)], DOMAIN, "bench", active_start=True)
     helm.startup(0.0)
     return helm
-
-
-def report(name: str, x: float, y: float, hdg: float, spd: float, t: float) -> str:
-    return f"NAME={name},X={x:.2f},Y={y:.2f},SPD={spd},HDG={hdg},DEP=0,TIME={t:.2f}"
 
 
 def time_iterations(helm: Helm, t: float, batches: int, per_batch: int, mail) -> tuple[float, float]:
@@ -95,7 +73,7 @@ def contacts_at(t: float, n: int) -> list[str]:
 
 
 def bench_avoidance(n: int = 10, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
-    helm = make_helm(AVOID_TEMPLATE)
+    helm = make_helm(AVOID_MISSION)
     for var, value in dict(NAV_X=0.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=2.0).items():
         helm.on_mail(var, value, 0.0)
     for i, text in enumerate(contacts_at(0.0, n)):
@@ -110,24 +88,11 @@ def bench_avoidance(n: int = 10, batches: int = 10, per_batch: int = 20) -> tupl
     return time_iterations(helm, 2.0, batches, per_batch, mail)
 
 
-def head_on(avoid: bool) -> tuple[float, float]:
-    """Ownship transits 0,0 -> 0,400 at 2 m/s; a contact comes south at 2 m/s on the same line and does
-    not give way. (closest approach in m, time to reach y = 390 in s)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "behaviors"))
-    from helm_sim import Boat, run
-    transit_only = AVOID_TEMPLATE[AVOID_TEMPLATE.index("Behavior = BHV_Waypoint"):]
-    helm = make_helm(AVOID_TEMPLATE if avoid else transit_only)
-    boat, t, closest, alerted = Boat(0, 0, 0), 0.0, math.inf, False
-    while boat.y < 390 and t < 600:
-        cn_y = 300 - 2 * t
-        helm.on_mail("NODE_REPORT", report("henry", 0, cn_y, 180, 2, t), t)
-        if not alerted and math.hypot(boat.x, boat.y - cn_y) < 100:
-            helm.on_mail("CONTACT_INFO", "name=henry # contact=henry", t)
-            alerted = True
-        run(helm, boat, 0.25, start=t)
-        closest = min(closest, math.hypot(boat.x, boat.y - cn_y))
-        t += 0.25
-    return closest, t
+def head_on_figures(avoid: bool) -> tuple[float, float]:
+    """(closest approach, transit time) of the head-on encounter, with or without the avoidance."""
+    text = AVOID_MISSION if avoid else AVOID_MISSION[AVOID_MISSION.index("Behavior = BHV_Waypoint"):]
+    closest, arrived, _ = head_on(make_helm(text))
+    return closest, arrived
 
 
 if __name__ == "__main__":
@@ -137,7 +102,7 @@ if __name__ == "__main__":
     best, median = bench_avoidance()
     print(f"helm iteration, 10 spawned BHV_AvoidCollision + 1 waypoint: {best:6.2f} ms CPU "
           f"(median of batches {median:6.2f} ms; goal < 5 ms)")
-    (cpa, t_avoid), (cpa_none, t_straight) = head_on(True), head_on(False)
+    (cpa, t_avoid), (cpa_none, t_straight) = head_on_figures(True), head_on_figures(False)
     print(f"head-on at 2 m/s: closest approach {cpa:.1f} m with avoidance (min_util_cpa_dist 10 m; "
           f"{cpa_none:.1f} m without), {t_avoid - t_straight:.1f} s lost against the straight path "
           f"({t_straight:.1f} s)")

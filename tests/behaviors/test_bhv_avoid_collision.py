@@ -11,7 +11,8 @@ from behaviors.behavior import InfoBuffer
 from behaviors.bhv_avoid_collision import BHV_AvoidCollision
 from behaviors.contacts import closing_speed, cpa_distance, extrapolate, node_report_values
 from behaviors.helm import Helm
-from helm_sim import Boat, run
+from helm_sim import AVOID_MISSION as TEMPLATE
+from helm_sim import Boat, head_on, node_report as report, run
 
 
 @pytest.mark.parametrize("course, speed, tol, expected", [
@@ -174,34 +175,6 @@ def test_pair_parameters_keep_their_order(domain):
     assert (bhv.min_util_cpa_dist, bhv.max_util_cpa_dist) == (5, 5)
 
 
-TEMPLATE = """Behavior = BHV_AvoidCollision
-{
-  name       = avd_
-  pwt        = 300
-  updates    = CONTACT_INFO
-  templating = spawn
-  endflag    = CONTACT_RESOLVED = $[CONTACT]
-  contact    = to-be-set
-  pwt_outer_dist = 100
-  pwt_inner_dist = 30
-  completed_dist = 150
-  min_util_cpa_dist = 10
-  max_util_cpa_dist = 30
-  pwt_grade  = linear
-}
-Behavior = BHV_Waypoint
-{
-  name   = transit
-  speed  = 2
-  point  = 0,400
-}
-"""
-
-
-def report(name, x, y, hdg, spd, t):
-    return f"NAME={name},X={x:.2f},Y={y:.2f},SPD={spd},HDG={hdg},DEP=0,TIME={t:.2f}"
-
-
 def test_spawned_per_contact_alert_and_dies_when_clear(domain, make_bhv):
     helm = Helm([make_bhv(TEMPLATE)], domain, "abe", active_start=True)
     start = {var: value for var, value, _ in helm.startup(0.0)}
@@ -223,21 +196,10 @@ def test_spawned_per_contact_alert_and_dies_when_clear(domain, make_bhv):
 
 
 def test_head_on_at_2_mps_keeps_the_cpa_above_min_util_cpa_dist(domain, make_bhv):
-    """Ownship transits north at 2 m/s; henry comes south at 2 m/s on the same line and does not give
-    way. Without the avoidance they would collide; with it the closest approach stays above 10 m.
-    The alert comes as a contact manager sends it: once, when the range falls inside alert_range."""
+    """Without the avoidance they would collide (see benchmarks/helm_bench.py); with it the closest
+    approach stays above min_util_cpa_dist and the transit goes on."""
     helm = Helm([make_bhv(TEMPLATE)], domain, "abe", active_start=True)
     helm.startup(0.0)
-    boat, t, closest, alerted, log = Boat(0, 0, 0), 0.0, 1e9, False, []
-    while t < 150:
-        cn_y = 300 - 2 * t
-        helm.on_mail("NODE_REPORT", report("henry", 0, cn_y, 180, 2, t), t)
-        if not alerted and math.hypot(boat.x, boat.y - cn_y) < 100:
-            helm.on_mail("CONTACT_INFO", "name=henry # contact=henry", t)
-            alerted = True
-        run(helm, boat, 0.25, start=t, log=log)
-        closest = min(closest, math.hypot(boat.x, boat.y - cn_y))
-        t += 0.25
-    assert closest >= 10
-    assert boat.y > 250                                # and it went on with the transit
+    closest, arrived, log = head_on(helm)
+    assert closest >= 10 and arrived < 250
     assert [e.split(",event=")[1].split(",")[0] for _, v, e in log if v == "IVPHELM_LIFE_EVENT"] == ["spawn", "death"]
