@@ -26,7 +26,7 @@ from .contacts import closing_speed, extrapolate, leg_cpa, velocity
 from .flags import FlagSpec, expand_macros, parse_flag
 from .geometry import fmt_num, format_seglist
 from .ivp_function import IvPFunction
-from .parameters import BOOLEAN, NON_NEGATIVE, Parser, accepted, attr, one_of, param, parse_number
+from .parameters import BOOLEAN, NON_NEGATIVE, Parser, accepted, attr, one_of, pair_bound, param, parse_number
 
 GRADES = {"linear": 1.0, "quasi": 1.5, "quadratic": 2.0}
 GRID_VELOCITIES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}   # per domain grid: ownship (vx, vy)
@@ -83,6 +83,14 @@ class BHV_AvoidCollision(IvPBehavior):
              "a spawning template does not post BCM_ALERT_REQUEST at helm start"),
         attr(("match_contact_group", "match_group"), "match_group", doc="only a contact of this group (else complete)"),
         attr(("ignore_contact_group", "ignore_group"), "ignore_group", doc="never a contact of this group (complete)"),
+        pair_bound("pwt_inner_dist", "pwt_inner_dist", "pwt_outer_dist", True, "50",
+                   "within this range the weight is full; raises pwt_outer_dist to it if needed"),
+        pair_bound("pwt_outer_dist", "pwt_inner_dist", "pwt_outer_dist", False, "200",
+                   "beyond this range the weight is 0 (no function); lowers pwt_inner_dist to it if needed"),
+        pair_bound("min_util_cpa_dist", "min_util_cpa_dist", "max_util_cpa_dist", True, "10",
+                   "a leg whose CPA is closer has utility 0; raises max_util_cpa_dist to it if needed"),
+        pair_bound("max_util_cpa_dist", "min_util_cpa_dist", "max_util_cpa_dist", False, "75",
+                   "a leg whose CPA is farther has utility 100; lowers min_util_cpa_dist to it if needed"),
         accepted(("use_refinery", "check_plateaus", "check_validity", "verbose"),
                  "accepted: the CPA refinery speeds up the C++ piecewise build; this helm evaluates every grid "
                  "point exactly", BOOLEAN),
@@ -107,26 +115,6 @@ class BHV_AvoidCollision(IvPBehavior):
            doc="the vehicle to avoid (its NODE_REPORTs); a template has it set by its spawning update")
     def _set_contact(self, name: str) -> None:
         self.contact = name
-
-    @param("pwt_inner_dist", parse=NON_NEGATIVE, default="50",
-           doc="within this range the weight is full; raises pwt_outer_dist to it if needed")
-    def _set_pwt_inner(self, dist: float) -> None:
-        self.pwt_inner_dist, self.pwt_outer_dist = dist, max(self.pwt_outer_dist, dist)
-
-    @param("pwt_outer_dist", parse=NON_NEGATIVE, default="200",
-           doc="beyond this range the weight is 0 (no function); lowers pwt_inner_dist to it if needed")
-    def _set_pwt_outer(self, dist: float) -> None:
-        self.pwt_outer_dist, self.pwt_inner_dist = dist, min(self.pwt_inner_dist, dist)
-
-    @param("min_util_cpa_dist", parse=NON_NEGATIVE, default="10",
-           doc="a leg whose CPA is closer has utility 0; raises max_util_cpa_dist to it if needed")
-    def _set_min_util(self, dist: float) -> None:
-        self.min_util_cpa_dist, self.max_util_cpa_dist = dist, max(self.max_util_cpa_dist, dist)
-
-    @param("max_util_cpa_dist", parse=NON_NEGATIVE, default="75",
-           doc="a leg whose CPA is farther has utility 100; lowers min_util_cpa_dist to it if needed")
-    def _set_max_util(self, dist: float) -> None:
-        self.max_util_cpa_dist, self.min_util_cpa_dist = dist, min(self.min_util_cpa_dist, dist)
 
     @param("cnflag", parse=Parser("@<N \\| @>N \\| @cpa VAR=value", _contact_flag),
            doc="posted when the range drops below N, rises above N, or at the closest approach; macros "

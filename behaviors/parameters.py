@@ -97,6 +97,17 @@ def accepted(names: Iterable[str], doc: str, parse: Parser = TEXT) -> ParamSpec:
     return ParamSpec(tuple(names), parse, lambda bhv, v: None, None, doc)
 
 
+def pair_bound(name: str, low: str, high: str, sets_low: bool, default: str, doc: str) -> ParamSpec:
+    """One end of a (low, high) pair of attributes, MOOS-IvP's min/max "part of pair": setting one
+    end moves the other with it when they would cross."""
+    def set_end(bhv: Any, value: float) -> None:
+        lo, hi = getattr(bhv, low), getattr(bhv, high)
+        lo, hi = (value, max(hi, value)) if sets_low else (min(lo, value), value)
+        setattr(bhv, low, lo)
+        setattr(bhv, high, hi)
+    return ParamSpec((name,), NON_NEGATIVE, set_end, default, doc)
+
+
 def param(*names: str, parse: Parser = TEXT, default: str | None = None, doc: str = ""):
     """Decorator: the method `(self, parsed_value)` sets the parameter."""
     def wrap(fn):
