@@ -10,6 +10,8 @@ import time as _time
 from dataclasses import dataclass
 from typing import Union
 
+from moosdb_py.formats import FormatError, parse_pairs
+
 from .domain import IvPDomain
 from .geometry import fmt_num
 from .flags import FLAG_KINDS, FlagError, FlagSpec, expand_macros, parse_flag
@@ -70,10 +72,12 @@ class Post:
 def apply_visual_hints(hints: dict[str, str], value: str) -> None:
     """`visual_hints = vertex_color=red, edge_size=2`: lines accumulate; keys this behaviour does not
     draw with are ignored, as MOOS-IvP does; a size must be a number >= 0."""
-    for item in value.split(","):
-        key, sep, val = (part.strip() for part in item.partition("="))
-        key = key.lower()
-        if not sep or key not in hints:
+    try:
+        pairs = parse_pairs(value)
+    except FormatError as exc:
+        raise ValueError(f"visual_hints: {exc}") from None
+    for key, val in pairs.items():
+        if key not in hints:
             continue
         if key.endswith("size"):
             val = fmt_num(parse_number(val, f"visual_hints {key}", 0))

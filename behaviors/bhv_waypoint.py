@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from moosdb_py.formats import FormatError, parse_pairs
+
 from .behavior import IvPBehavior, apply_visual_hints, flag_param, hint_fields
 from .geometry import GeometryError, bearing, distance, fmt_num, format_seglist, parse_point, parse_polygon, parse_seglist
 from .ivp_function import IvPFunction, couple
@@ -33,7 +35,10 @@ def _ipf_type(value: str, key: str) -> str:
 
 
 def _end_spd(value: str, key: str) -> tuple[float, float]:
-    props = dict(p.split("=", 1) for p in "".join(value.split()).split(",") if "=" in p)
+    try:
+        props = parse_pairs(value)
+    except FormatError as exc:
+        raise ValueError(f"end_spd: {exc}") from None
     slow = parse_number(props.get("slow_dist", ""), "slow_dist", 0)
     stop = parse_number(props.get("stop_dist", ""), "stop_dist", 0)
     if stop > slow:

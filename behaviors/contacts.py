@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from moosdb_py.formats import FormatError, parse_pairs
+
 from .logic import as_number
 
 # NODE_REPORT field -> info-buffer suffix; keys are matched without regard to case.
@@ -24,11 +26,10 @@ REQUIRED = ("NAV_X", "NAV_Y", "NAV_SPEED", "NAV_HEADING", "NAV_UTC")
 def node_report_values(report: str) -> dict[str, float | str] | None:
     """The info-buffer values of one NODE_REPORT, or None when it lacks a name, position, speed,
     heading or time (such a report tells a contact behaviour nothing it can use)."""
-    fields = {}
-    for item in report.split(","):
-        key, sep, value = item.partition("=")
-        if sep:
-            fields[key.strip().lower()] = value.strip()
+    try:
+        fields = parse_pairs(report)
+    except FormatError:
+        return None
     name = fields.get("name", "").upper()
     values: dict[str, float | str] = {}
     for key, suffix in NUMERIC_FIELDS.items():

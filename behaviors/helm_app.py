@@ -12,6 +12,7 @@ from .bhv_file import BhvFile, read_bhv
 from .domain import IvPDomain, parse_domain_line
 from .helm import Helm
 from .logic import as_number
+from .parameters import parse_bool
 
 EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
 # Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
@@ -33,13 +34,6 @@ def parameter_warnings(config) -> list[MissionFileError]:
         elif entry.key.lower() not in KNOWN_PARAMS:
             out.append(entry.source.error(f"unknown pHelmIvP parameter '{entry.key}'"))
     return out
-
-
-def _bool(value: str, key: str) -> bool:
-    low = value.strip().lower()
-    if low not in ("true", "false"):
-        raise ValueError(f"{key} must be true or false, got '{value}'")
-    return low == "true"
 
 
 class HelmIvP(MOOSApp):
@@ -106,7 +100,7 @@ PUBLICATIONS
         if not lines:
             raise ValueError("domain: no decision domain given (domain = course:0:359:360)")
         domain = IvPDomain(vars=[self._domain_var(text) for text in lines])
-        active = any(_bool(cfg.get(k), k) for k in ("active_start", "start_engaged", "start_in_drive")
+        active = any(parse_bool(cfg.get(k), k) for k in ("active_start", "start_engaged", "start_in_drive")
                      if cfg.get(k) is not None)
         skew = (cfg.get("ok_skew", "60") or "60").strip().lower()
         if skew != "any" and (as_number(skew) is None or as_number(skew) < 0):
@@ -114,10 +108,10 @@ PUBLICATIONS
         self.ok_skew = None if skew == "any" else as_number(skew)
         ownship = self.mission.community if self.mission is not None else self.name
         self.helm = Helm(files, domain, ownship, app_name=self.name, active_start=active,
-                         allow_park=_bool(cfg.get("allow_park", "true"), "allow_park"),
-                         park_on_allstop=_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
+                         allow_park=parse_bool(cfg.get("allow_park", "true"), "allow_park"),
+                         park_on_allstop=parse_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
                          helm_prefix=cfg.get("helm_prefix", "") or "")
-        _bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
+        parse_bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
         grace = as_number(cfg.get("nav_grace", "5") or "")
         if grace is None or grace < 0:
             raise ValueError(f"nav_grace must be seconds >= 0, got '{cfg.get('nav_grace')}'")

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable
 
-from .logic import as_number
+from moosdb_py import formats
 
 
 @dataclass(frozen=True)
@@ -25,14 +25,16 @@ class Parser:
 
 
 def parse_bool(value: str, what: str) -> bool:
-    low = value.strip().lower()
-    if low not in ("true", "false"):
-        raise ValueError(f"{what} must be true or false, got '{value}'")
-    return low == "true"
+    """A MOOS boolean (moosdb_py.formats: true/on/number > 0, false/off/number <= 0, any case)."""
+    try:
+        return formats.parse_bool(value)
+    except formats.FormatError:
+        raise ValueError(f"{what} must be true or false (on/off, or a number), got '{value}'") from None
 
 
 def parse_number(value: str, what: str, minimum: float | None = None) -> float:
-    number = as_number(value)
+    """A MOOS number (moosdb_py.formats), at least `minimum` when given."""
+    number = formats.parse_number(value) if formats.is_number(value) else None
     if number is None or (minimum is not None and number < minimum):
         bound = f" >= {minimum:g}" if minimum is not None else ""
         raise ValueError(f"{what} must be a number{bound}, got '{value}'")
