@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import FormatError, parse_pairs
 from moosdb_py.source import MissionFileError
 
 from .bhv_file import BhvFile, read_bhv
@@ -18,11 +19,13 @@ EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
 # Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
 # anything else is a config warning that puts the helm in MALCONFIG, as the C++ helm does.
 KNOWN_PARAMS = frozenset({
-    "apptick", "commstick", "maxappticks", "iteratemode", "debug", "app_logging",
+    "apptick", "commstick", "maxappticks", "maxapptick", "iteratemode", "debug", "app_logging",
     "behaviors", "domain", "active_start", "start_engaged", "start_in_drive", "allow_park", "park_on_allstop",
     "helm_prefix", "ok_skew", "goals_mandatory", "nav_grace", "hold_on_apps", "verbose",
-    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs"})
+    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs", "pmgen"})
 NOT_SUPPORTED = frozenset({"standby", "other_override_var"})   # real pHelmIvP keys this helm lacks
+# Keys the C++ helm does not read but only warns about (the mission runs): warned here too.
+WARNED_ONLY = frozenset({"term_report_interval"})
 
 
 def parameter_warnings(config) -> list[MissionFileError]:
@@ -31,9 +34,26 @@ def parameter_warnings(config) -> list[MissionFileError]:
     for entry in config.entries:
         if entry.key.lower() in NOT_SUPPORTED:
             out.append(entry.source.error(f"pHelmIvP parameter '{entry.key}' is not supported by this helm"))
-        elif entry.key.lower() not in KNOWN_PARAMS:
+        elif entry.key.lower() == "pmgen" and not _key_value_list(entry.value):
+            out.append(entry.source.error(f"pmgen must be a key=value list (platform model parameters), "
+                                          f"got '{entry.value}'"))
+        elif entry.key.lower() not in KNOWN_PARAMS | WARNED_ONLY:
             out.append(entry.source.error(f"unknown pHelmIvP parameter '{entry.key}'"))
     return out
+
+
+def ignored_parameter_warnings(config) -> list[MissionFileError]:
+    """Lines of a pHelmIvP block the helm ignores with a warning, as the C++ helm does (it still drives)."""
+    return [entry.source.error(f"pHelmIvP ignores '{entry.key}' (the C++ helm only warns about it)")
+            for entry in config.entries if entry.key.lower() in WARNED_ONLY]
+
+
+def _key_value_list(text: str) -> bool:
+    try:
+        parse_pairs(text)
+    except FormatError:
+        return False
+    return True
 
 
 class HelmIvP(MOOSApp):
@@ -66,6 +86,7 @@ ProcessConfig = pHelmIvP
   verbose         = false         // accepted for compatibility
   bhv_dir_not_found_ok = false    // accepted for compatibility (no behaviour libraries to load)
   app_logging     = false         // accepted for compatibility
+  pmgen           =               // platform-model parameters (key=value list): checked, accepted
 }
 // Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning."""
     interface = """\
@@ -119,6 +140,8 @@ PUBLICATIONS
         self.helm.hold_on_apps = [a.strip() for v in cfg.get_all("hold_on_apps") for a in v.split(",") if a.strip()]
         for warning in parameter_warnings(self.config):
             self.helm.malconfig(str(warning))
+        for warning in ignored_parameter_warnings(self.config):
+            print(f"{self.name}: warning: {warning}", file=sys.stderr)
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
             self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
         for warning in self.helm.config_warnings:
