@@ -17,7 +17,7 @@ from .behavior import InfoBuffer, IvPBehavior, flag_param
 from .domain import IvPDomain
 from .flags import FLAG_KINDS
 from .logic import ConditionError, Relation, as_number, parse_mode_condition
-from .registry import BUILTIN_TYPES
+from .registry import PluginError, behavior_class
 
 Value = Union[float, str]
 _NAME_OK = re.compile(r"^[A-Za-z0-9_\-\[\]()#@+]+$")
@@ -78,8 +78,14 @@ class BehaviorSpec(BaseModel):
     @property
     def name(self) -> str:
         """The `name` line, else the type's default name (two unnamed ones of a type clash)."""
-        cls = BUILTIN_TYPES.get(self.type.lower())
-        return self.get("name") or self.get("descriptor") or (cls.default_name if cls else self.type.lower())
+        given = self.get("name") or self.get("descriptor")
+        if given:
+            return given
+        try:
+            cls = behavior_class(self.type)
+        except PluginError:
+            cls = None     # reported where the helm builds it
+        return cls.default_name if cls else self.type.lower()
 
     @property
     def templating(self) -> str:

@@ -18,12 +18,12 @@ from .contacts import node_report_values
 from .domain import IvPDomain
 from .ivp_function import IvPFunction
 from .logic import as_number
-from .registry import BUILTIN_TYPES, PluginError, behavior_class, known_type_names
+from .registry import PluginError, behavior_class, behavior_types, known_type_names
 from .solver import missing_decisions, solve
 
 Value = Union[float, str]
 HelmPost = tuple[str, Value, str]
-BEHAVIOR_TYPES = BUILTIN_TYPES   # the name moos-lint imports; plug-ins: registry.behavior_class
+BEHAVIOR_TYPES = behavior_types()   # what moos-lint looks types up in (registry.behavior_class is the live view)
 ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
                      "MOOS_MANUAL_OVERIDE", "DB_CLIENTS", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
                      "IVPHELM_STATE")
@@ -37,7 +37,7 @@ def build_behavior(spec: BehaviorSpec, domain: IvPDomain, info: InfoBuffer, owns
     except PluginError as exc:
         raise MissionFileError(spec.file, spec.line, str(exc)) from None
     if cls is None:
-        known = ", ".join(known_type_names())
+        known = ", ".join(known_type_names()) or "none: the behaviors.bhv entry points are missing, reinstall the package"
         raise MissionFileError(spec.file, spec.line, f"unknown behavior type '{spec.type}' (this helm has {known})")
     bhv = cls(domain, info, ownship)
     for p in spec.params:

@@ -8,8 +8,9 @@ import pytest
 from behaviors.behavior import InfoBuffer, IvPBehavior
 from behaviors.domain import IvPDomain, parse_domain_line
 from behaviors.parameters import parameter_table, unique_specs
-from behaviors.registry import BUILTIN_TYPES
+from behaviors.registry import behavior_types
 
+BUILTIN = {name: cls for name, cls in behavior_types().items() if cls.__module__.startswith("behaviors.")}
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41"),
                          parse_domain_line("depth:0:100:101")])
@@ -18,7 +19,7 @@ DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_lin
 def type_tables() -> dict[str, str]:
     tables = {"general": parameter_table(IvPBehavior.parameters)}
     tables.update({cls.type_name: parameter_table(cls.parameters, skip=IvPBehavior.parameters)
-                   for cls in BUILTIN_TYPES.values()})
+                   for cls in BUILTIN.values()})
     return tables
 
 
@@ -30,7 +31,7 @@ def test_docs_show_the_declared_table(name):
     assert type_tables()[name] in text, f"docs table for {name} is out of step with its declaration"
 
 
-@pytest.mark.parametrize("cls", list(BUILTIN_TYPES.values()), ids=lambda c: c.type_name)
+@pytest.mark.parametrize("cls", list(BUILTIN.values()), ids=lambda c: c.type_name)
 def test_declared_defaults_are_the_real_ones(cls):
     bhv = cls(DOMAIN, InfoBuffer())
     for spec in unique_specs(cls.parameters):
@@ -38,7 +39,7 @@ def test_declared_defaults_are_the_real_ones(cls):
             assert getattr(bhv, spec.attr) == spec.parse(spec.default, spec.name), spec.name
 
 
-@pytest.mark.parametrize("cls", list(BUILTIN_TYPES.values()), ids=lambda c: c.type_name)
+@pytest.mark.parametrize("cls", list(BUILTIN.values()), ids=lambda c: c.type_name)
 def test_every_declared_name_is_accepted_and_nothing_else(cls):
     for spec in unique_specs(cls.parameters):
         for name in spec.names:
@@ -50,14 +51,14 @@ def test_every_declared_name_is_accepted_and_nothing_else(cls):
 
 
 def test_loiter_takes_only_the_waypoint_parameters_it_shares():
-    loiter = BUILTIN_TYPES["bhv_loiter"]
-    assert loiter.spec_for("speed") is BUILTIN_TYPES["bhv_waypoint"].spec_for("speed")
+    loiter = BUILTIN["bhv_loiter"]
+    assert loiter.spec_for("speed") is BUILTIN["bhv_waypoint"].spec_for("speed")
     assert loiter.spec_for("repeat") is None and loiter.spec_for("points") is None
-    assert loiter.spec_for("polygon") is not BUILTIN_TYPES["bhv_waypoint"].spec_for("polygon")
+    assert loiter.spec_for("polygon") is not BUILTIN["bhv_waypoint"].spec_for("polygon")
 
 
 def test_a_key_dependent_parser_sees_the_alias_used():
-    loiter = BUILTIN_TYPES["bhv_loiter"](DOMAIN, InfoBuffer())
+    loiter = BUILTIN["bhv_loiter"](DOMAIN, InfoBuffer())
     loiter.apply("polygon", "0,0:0,10:10,10:10,0")
     loiter.apply("xcenter_assign", "100")
     assert loiter.base_polygon.mean(axis=0).tolist() == [100, 5]
