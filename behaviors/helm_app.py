@@ -88,7 +88,8 @@ ProcessConfig = pHelmIvP
   app_logging     = false         // accepted for compatibility
   pmgen           =               // platform-model parameters (key=value list): checked, accepted
 }
-// Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning."""
+// Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning;
+// term_report_interval is only warned about, as the C++ helm does."""
     interface = """\
 SUBSCRIPTIONS
   NAV_X, NAV_Y, NAV_HEADING, NAV_SPEED, NAV_DEPTH     ownship navigation
@@ -96,6 +97,7 @@ SUBSCRIPTIONS
   HELM_MAP_CLEAR                                      re-post everything (viewers)
   DB_CLIENTS                                          for hold_on_apps
   IVPHELM_STATE                                       another helm posting disables this one
+  NODE_REPORT                                         other vehicles, when a contact behaviour is configured
   every variable in behaviour/mode/flag conditions, updates and duration_reset variables
 PUBLICATIONS
   DESIRED_HEADING, DESIRED_SPEED, DESIRED_<VAR>       the decision (double), every iteration
@@ -107,7 +109,9 @@ PUBLICATIONS
   NODE_MESSAGE_LOCAL  flags written `#all VAR = value` etc., for uFldNodeBroker to send on
   mode variables (e.g. MODE = ACTIVE:SURVEYING), initialize values, behaviour flags and posts
   (WPT_STAT, WPT_INDEX, CYCLE_INDEX, VIEW_POINT, VIEW_SEGLIST, VIEW_POLYGON, DIST_TO_STATION,
-  PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, ...)"""
+  PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, OPREG_*, RANGE_AVD_<CONTACT>,
+  CLSG_SPD_AVD_<CONTACT>, ...)
+  BCM_ALERT_REQUEST  at start-up, from each spawning BHV_AvoidCollision template"""
 
     def on_startup(self) -> None:
         cfg = self.config
