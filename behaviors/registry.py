@@ -55,8 +55,15 @@ def behavior_class(type_name: str) -> type[IvPBehavior] | None:
 
 
 def behavior_types() -> dict[str, type[IvPBehavior]]:
-    """Every registered type by lower-cased name, loaded (moos-lint and the docs ask)."""
-    return {name: behavior_class(name) for name in entries()}
+    """Every registered type that loads, by lower-cased name (moos-lint and the docs ask). A broken
+    plug-in is left out here; it is an error only where a .bhv file names it."""
+    types = {}
+    for name in entries():
+        try:
+            types[name] = behavior_class(name)
+        except PluginError:
+            continue
+    return types
 
 
 def known_type_names() -> list[str]:

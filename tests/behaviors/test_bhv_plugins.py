@@ -96,3 +96,5 @@ def test_a_plugin_behaviour_is_named_configured_and_run(plugin_package, make_bhv
 def test_a_bad_plugin_is_a_clear_error_naming_it(plugin_package, make_bhv, domain, name, message):
     with pytest.raises(MissionFileError, match=f"t.bhv:1: {message}"):
         Helm([make_bhv(f"Behavior = {name}\n{{\n}}\n")], domain, "abe")
+    types = registry.behavior_types()                # the others still load
+    assert name.lower() not in types and types["bhv_beacon"].type_name == "BHV_Beacon"
