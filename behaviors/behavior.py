@@ -403,6 +403,14 @@ class IvPBehavior:
     def needed_domain_vars(self) -> tuple[str, ...]:
         return self.domain_vars
 
+    def delta_vars(self) -> list[str]:
+        """Variables whose every post this iteration matters (updates, duration resets), not just the last."""
+        return [v for v in (self.updates_var, self.duration.reset_var) if v]
+
+    def run_condition_vars(self) -> list[str]:
+        """The variables of the run conditions (IVPHELM_STATEVARS)."""
+        return [v for c in self.conditions for v in c.variables()]
+
     def condition_vars(self) -> list[str]:
         names = [v for c in self.conditions for v in c.variables()]
         for flags in self.flags.values():

@@ -95,7 +95,7 @@ class Helm:
 
     def _track_deltas(self) -> None:
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
-            self.info.delta_vars.update(v for v in (bhv.updates_var, bhv.duration.reset_var) if v)
+            self.info.delta_vars.update(bhv.delta_vars())
 
     # ---- subscriptions and startup ---------------------------------------------------
     def subscriptions(self) -> list[str]:
@@ -130,7 +130,7 @@ class Helm:
         """Variables the behaviours' states depend on: mode and behaviour conditions."""
         names = [v for m in self.modes for c in m.conditions for v in c.variables()]
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
-            names += [v for c in bhv.conditions for v in c.variables()]
+            names += bhv.run_condition_vars()
         return list(dict.fromkeys(names))
 
     # ---- mail -------------------------------------------------------------------------
