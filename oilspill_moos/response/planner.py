@@ -84,8 +84,10 @@ def _polygon_parts(boundary) -> list[Polygon]:
 def perimeter_points(region: Polygon, arcs: np.ndarray) -> np.ndarray:
     """Points at the given arc distances along the region's exterior (any array shape + (2,))."""
     arcs = np.asarray(arcs, dtype=float)
-    points = shapely.line_interpolate_point(region.exterior, arcs.ravel() % region.exterior.length)
-    return shapely.get_coordinates(points).reshape(arcs.shape + (2,))
+    ring = np.asarray(region.exterior.coords)
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ring, axis=0).T))])
+    at = arcs.ravel() % along[-1]   # linear along each edge, as shapely.line_interpolate_point, without its per-point cost
+    return np.column_stack([np.interp(at, along, ring[:, 0]), np.interp(at, along, ring[:, 1])]).reshape(arcs.shape + (2,))
 
 
 def evenly_spaced_arcs(perimeter: float, n: int, offset: float = 0.0) -> np.ndarray:
@@ -285,15 +287,18 @@ def plan_arcs(
     region: Polygon,
     positions: Mapping[str, Sequence[float]],
     speeds: Mapping[str, float] | None = None,
-    rotations: int = 64,
-    samples: int = 64,
+    rotations: int = 16,
+    samples: int = 32,
 ) -> Plan:
     """Cut the perimeter into one arc per vehicle and deal them out with the shortest longest transit.
 
     The arcs are equally long: the fleet patrols at one speed, so equal arcs give every part of
     the perimeter the same revisit period.  A vehicle's transit is to the nearest point of its
     arc (`samples` points per arc are tried), where it joins it; the rotation of the cut and the
-    assignment minimise the longest transit time (with `speeds`) as in `plan_containment`.
+    assignment minimise the longest transit time (with `speeds`) as in `plan_containment`.  Fewer
+    rotations than there: the entry slides along the arc, so the cut matters less, and pPathAssign
+    plans every horizon of a forecast on the warped clock (16 x 32 is within a metre of 64 x 64 on
+    the demo's 33 km loop, in a sixth of the time).
     """
     names, where, pace = _fleet(positions, speeds)
     n = len(names)
