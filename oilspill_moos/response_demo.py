@@ -34,6 +34,7 @@ from oilspill_moos.response.measures import (
     positions_at,
 )
 from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.oil_sensor import TruthSpill
 from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING, parse_boundary_line
 from oilspill_moos.response.planner import containment_region
 
@@ -49,29 +50,25 @@ BOUND_FACTOR = 1.3
 
 @dataclass
 class Truth:
-    """The scenario on the mission plane, on the mission clock: hour START_HOUR at mission second 0."""
+    """The scenario on the mission plane (uFldOilSensor's TruthSpill), on the mission clock: hour
+    `start_hour` at mission second 0."""
 
     scenario: object
-    world: ScenarioMap
+    spill: TruthSpill
     start_hour: float = START_HOUR
-    _cache: dict = field(default_factory=dict)
 
-    def index(self, hour: float) -> int:
-        return int(np.clip(np.searchsorted(self.scenario.times_h, hour, side="right") - 1, 0,
-                           len(self.scenario.times_h) - 1))
+    def observed(self, hour: float) -> int:
+        """How many hourly outlines exist by scenario hour `hour` (what a satellite has seen)."""
+        return max(int(np.searchsorted(self.spill.times_h, hour, side="right")), 1)
 
     def hour(self, mission_s: float) -> float:
         return self.start_hour + mission_s / 3600.0
 
     def at_hour(self, hour: float):
-        """The latest hourly outline at scenario hour `hour`, in mission metres (as uFldOilSensor holds it)."""
-        i = self.index(hour)
-        if i not in self._cache:
-            self._cache[i] = self.world.to_local(self.scenario.geometries[i])
-        return self._cache[i]
+        return self.spill.at(hour)
 
     def at(self, mission_s: float):
-        return self.at_hour(self.hour(mission_s))
+        return self.spill.at(self.hour(mission_s))
 
 
 def load_truth(scenario_id: str = SCENARIO, start_hour: float = START_HOUR) -> Truth:
@@ -80,7 +77,7 @@ def load_truth(scenario_id: str = SCENARIO, start_hour: float = START_HOUR) -> T
     scenario = next((s for s in load_dataset() if s.scenario_id == scenario_id), None)
     if scenario is None:
         raise RuntimeError(f"scenario {scenario_id!r} is not in the forecaster's dataset")
-    return Truth(scenario, ScenarioMap(LocalGrid(*ORIGIN), 1.0), start_hour)
+    return Truth(scenario, TruthSpill.from_scenario(scenario, ScenarioMap(LocalGrid(*ORIGIN), 1.0)), start_hour)
 
 
 @dataclass
@@ -104,8 +101,7 @@ def forecast_cycles(truth: Truth, cycles: int, cycle_h: float, weights: Path | N
     scenario = truth.scenario
     found = []
     for k in range(cycles):
-        hour = truth.start_hour + k * cycle_h
-        last = truth.index(hour) + 1
+        last = truth.observed(truth.start_hour + k * cycle_h)
         history = scenario.geometries[:last], scenario.times()[:last], scenario.environments()[:last]
         forecasts = forecaster.forecast(*history, scenario.release_time)
         lines = [f.line() for f in forecasts]
