@@ -1,15 +1,14 @@
 """`make demo`: the oil-spill mission end to end, headless, with time warp.
 
-Launches missions/oilspill (a shoreside and N vehicle communities, one pAntler
-each), pushes a predicted boundary to pPathAssign over TCP (from the forecaster
-when its trained weights are present, else the outline shipped with the
-mission), follows the fleet through STATION-KEEPING -> STARTING-POSITION ->
-OIL-PATH, pushes a second boundary that re-plans, and leaves a report in a folder of its own,
-demo-output/<UTC time>/ (demo-output/latest names the newest): tracks.png (tracks, boundaries and
-loops), timeline.json and the mission's logs in run/. While the vessels transit it prints the
-distance they have to go and when they should arrive.
+By default a spill response at real scale (oilspill_moos/response_demo.py): 8 vessels, a truth
+spill (a held-out scenario moving on the mission clock), three forecast cycles two mission hours
+apart, each re-planned by pPathAssign from where the vessels are with an arc of the stand-off loop
+per vessel; the measures printed as it goes and a summary at the end; report.html with its PNGs in
+a folder of its own, demo-output/<UTC time>/ (demo-output/latest names the newest).
+`--source shipped` runs the small demo instead: the two outlines shipped with the mission, three
+vehicles on whole loops, tracks.png and timeline.json. `--feedback` runs the closed loop.
 
-    python -m oilspill_moos.demo [--vehicles N] [--warp W] [--out DIR] [--loop-time S]
+    python -m oilspill_moos.demo [--vehicles N] [--warp W] [--cycles C] [--cycle-hours H] [--out DIR]
 """
 from __future__ import annotations
 
