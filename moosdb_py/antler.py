@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from .app import print_page
+from .formats import print_page
 from .mission import AntlerRun, Mission, parse_mission
 from .nsplug import parse_defines, preprocess
 from .source import MissionFileError, SourceLine

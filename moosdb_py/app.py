@@ -17,6 +17,7 @@ import time as _time
 from pathlib import Path
 
 from .client import MOOSClient
+from .formats import print_page
 from .message import MOOSMsg
 from .mission import Mission, ProcessConfig, Where, db_address, read_mission
 from .source import MissionFileError
@@ -237,16 +238,6 @@ class MOOSApp:
         except KeyboardInterrupt:
             pass
         return 0
-
-
-def print_page(text: str) -> None:
-    """Print a --help/--example/--interface page; a reader that stops early (`| head`) is no error."""
-    try:
-        sys.stdout.write(text)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        # Python flushes stdout again at exit: point it at /dev/null so that flush cannot fail too.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _memory_kb() -> int:

@@ -13,6 +13,7 @@ import struct
 from dataclasses import dataclass, fields
 
 from .app import MOOSApp
+from .formats import FormatError, parse_pairs
 from .message import MOOSMsg
 
 
@@ -44,14 +45,14 @@ class HostRecord:
         of `community`, the only required field; unknown fields are skipped."""
         names = {f.name for f in fields(cls)}
         values: dict[str, str] = {}
-        for part in filter(str.strip, text.split(",")):
-            key, sep, value = part.partition("=")
-            if not sep:
-                raise ValueError(f"host record: {part.strip()!r} is not a key=value pair")
-            key = key.strip().lower()
+        try:
+            pairs = parse_pairs(text)
+        except FormatError as err:
+            raise ValueError(f"host record: {err}") from None
+        for key, value in pairs.items():
             key = "community" if key == "vname" else key
             if key in names:
-                values[key] = value.strip()
+                values[key] = value
         if not values.get("community"):
             raise ValueError(f"host record without community: '{text}'")
         return cls(**values)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 from .alog import AlogWriter, alog_header, log_root_name
 from .app import MOOSApp
-from .mission import ConfigEntry, ProcessConfig, moos_bool
-from .moosdb import wild_match
+from .formats import parse_bool, wild_match
+from .mission import ConfigEntry, ProcessConfig
 
 ALWAYS_OMITTED = ("MISSION_FILE",)
 CMD_VAR = "PLOGGER_CMD"
@@ -62,8 +62,13 @@ def parse_log_line(entry: ConfigEntry) -> LogRequest:
 
 
 def _bool(block: ProcessConfig, key: str, default: bool) -> bool:
-    value = block.get(key)
-    return default if value is None else moos_bool(value.split("@")[0])
+    entry = block.entry(key)
+    if entry is None:
+        return default
+    try:
+        return parse_bool(entry.value.split("@")[0])
+    except ValueError as err:
+        raise entry.source.error(f"{key} = '{entry.value}': {err}") from None
 
 
 def _patterns(block: ProcessConfig, key: str) -> list[str]:

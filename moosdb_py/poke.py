@@ -16,7 +16,7 @@ import asyncio
 import sys
 from dataclasses import dataclass
 
-from .app import print_page
+from .formats import print_page
 from .client import MOOSClient
 from .message import MOOSMsg
 from .mission import add_db_arguments, db_address, read_mission

@@ -6,12 +6,12 @@ mail and posts.
 """
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass, field
 
 from .app import MOOSApp
+from .formats import parse_bool, wild_match
 from .message import MOOSMsg
-from .mission import Mission, moos_bool
+from .mission import Mission
 
 DB_NAMES = {"MOOSDB", "moosdb"}
 OUTPUTS = ("PROC_WATCH_SUMMARY", "PROC_WATCH_EVENT", "PROC_WATCH_FULL_SUMMARY", "PROC_WATCH_TIME_WARP",
@@ -23,7 +23,7 @@ Post = tuple[str, str | float]
 
 def matches(name: str, pattern: str) -> bool:
     """`uXMS*` matches every name starting uXMS; other patterns match exactly (case-sensitive)."""
-    return fnmatch.fnmatchcase(name, pattern) if pattern.endswith("*") else name == pattern
+    return wild_match(pattern, name) if pattern.endswith("*") else name == pattern
 
 
 @dataclass
@@ -172,7 +172,7 @@ PUBLICATIONS:
         except ValueError:
             raise self._error("summary_wait", "summary_wait is not a number") from None
         self.state = ProcessWatchState(self.name, watch, watch_all == "true", nowatch,
-                                       moos_bool(self.config.get("allow_retractions") or "true"), summary_wait)
+                                       parse_bool(self.config.get("allow_retractions") or "true"), summary_wait)
         self.state.watched = {n: s for n, s in self.state.watched.items() if not self.state.excluded(n)}
         self.mapping = dict(parse_mapping(text, f"{self.config.source}: {self.name}")
                             for text in self.config.get_all("post_mapping"))

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 from moosdb_py.app import MOOSApp
 from moosdb_py.codec import CodecError, decode_message, encode_message
 from moosdb_py.message import NOTIFY, MOOSMsg
-from moosdb_py.moosdb import wild_match
+from moosdb_py.formats import FormatError, parse_pairs, wild_match
 
 log = logging.getLogger(__name__)
 
@@ -106,17 +106,11 @@ def parse_route(text: str, multicast_address: str = DEFAULT_MULTICAST_ADDRESS,
 
 def _fields(text: str, known: set[str], warnings: list[str]) -> dict[str, str]:
     """`a=1,b=2` with every blank removed, as MOOS config lines reach an app."""
-    pairs: dict[str, str] = {}
-    for part in "".join(text.split()).split(","):
-        if not part:
-            continue
-        key, sep, value = part.partition("=")
-        if not sep:
-            raise ShareConfigError(f"'{part}' is not key=value in '{text}'")
-        key = key.lower()
-        if key not in known:
-            warnings.append(f"'{key}' is not a pShare field; ignored in '{text}'")
-        pairs[key] = value
+    try:
+        pairs = parse_pairs("".join(text.split()))
+    except FormatError as err:
+        raise ShareConfigError(f"{err} in '{text}'") from None
+    warnings += [f"'{key}' is not a pShare field; ignored in '{text}'" for key in pairs if key not in known]
     return pairs
 
 

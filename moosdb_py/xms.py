@@ -13,20 +13,15 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from .app import print_page
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg
-from .mission import Mission, add_db_arguments, db_address, moos_bool, read_mission
-from .moosdb import wild_match
+from .formats import is_pattern, parse_bool, print_page, wild_match
+from .mission import Mission, add_db_arguments, db_address, read_mission
 from .source import MissionFileError
 
 SHOW_FIELDS = ("source", "time", "community", "aux")
 NOT_SET = "n/a"
 DEFAULT_WAIT = 2.0
-
-
-def is_pattern(name: str) -> bool:
-    return "*" in name or "?" in name
 
 
 def value_text(msg: MOOSMsg, trunc: int = 0) -> str:
@@ -189,7 +184,7 @@ def options_from(args: argparse.Namespace) -> Options:
         for key, column in (("display_source", "source"), ("display_time", "time"),
                             ("display_community", "community"), ("display_aux_source", "aux")):
             if block.get(key) is not None:
-                (show.add if moos_bool(block.get(key)) else show.discard)(column)
+                (show.add if parse_bool(block.get(key)) else show.discard)(column)
     if args.all:
         names.append("*")
     if history and history not in names:

@@ -7,8 +7,10 @@ wins) or a plain dict, which keeps the vehicle models testable without a mission
 from __future__ import annotations
 
 import logging
-import math
 from typing import Protocol
+
+from moosdb_py import formats
+from moosdb_py.formats import FormatError
 
 
 class ConfigLike(Protocol):
@@ -19,10 +21,6 @@ log = logging.getLogger("oilspill_moos.app_config")
 
 # Parameters every MOOS app's block may hold; they are read by the MOOSApp base.
 MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxappticks", "iteratemode", "verbose", "debug"})
-
-TRUE_WORDS = {"true", "yes", "on", "1"}
-FALSE_WORDS = {"false", "no", "off", "0"}
-
 
 class ConfigValueError(ValueError):
     """A bad parameter value; `key` is the parameter, so the app can point at its file:line."""
@@ -56,21 +54,19 @@ def warn_unhandled(config, known: set[str] | frozenset[str]) -> None:
 
 
 def parse_bool(text: str, what: str) -> bool:
-    word = str(text).strip().lower()
-    if word in TRUE_WORDS:
-        return True
-    if word in FALSE_WORDS:
-        return False
-    raise ConfigValueError(what, f"expected true or false, got {text!r}")
+    """A MOOS boolean (moosdb_py.formats), with an error naming `what`."""
+    try:
+        return formats.parse_bool(text)
+    except FormatError as err:
+        raise ConfigValueError(what, str(err)) from None
 
 
 def parse_float(text: str, what: str, lo: float | None = None, hi: float | None = None) -> float:
+    """A MOOS number (moosdb_py.formats) within [lo, hi], with an error naming `what`."""
     try:
-        value = float(str(text).strip())
-    except ValueError:
-        raise ConfigValueError(what, f"expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise ConfigValueError(what, f"expected a finite number, got {text!r}")
+        value = formats.parse_number(text)
+    except FormatError as err:
+        raise ConfigValueError(what, str(err)) from None
     if (lo is not None and value < lo) or (hi is not None and value > hi):
         raise ConfigValueError(what, f"{value:g} is outside [{lo}, {hi}]")
     return value
@@ -97,23 +93,3 @@ def config_str(cfg: ConfigLike, key: str, default: str) -> str:
         return default
     return str(text).strip()
 
-
-def parse_pairs(text: str) -> dict[str, str]:
-    """`a=1, b = x` -> {'a': '1', 'b': 'x'} (keys lower-cased; last one wins)."""
-    pairs: dict[str, str] = {}
-    for part in str(text).split(","):
-        if not part.strip():
-            continue
-        key, sep, value = part.partition("=")
-        if not sep:
-            raise ValueError(f"{part.strip()!r} is not a key=value pair")
-        pairs[key.strip().lower()] = value.strip()
-    return pairs
-
-
-def format_number(value: float, decimals: int = 2) -> str:
-    """Fixed point with at most `decimals` places, trailing zeros (and a bare point) removed, as MOOS writes numbers into report strings."""
-    text = f"{value:.{decimals}f}"
-    if "." in text:
-        text = text.rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text

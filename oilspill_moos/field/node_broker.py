@@ -15,7 +15,8 @@ from moosdb_py.app import MOOSApp
 from moosdb_py.host_info import HostRecord, format_warp, iroutes_from_summary
 from moosdb_py.message import MOOSMsg
 from moosdb_py.mission import db_address
-from oilspill_moos.app_config import config_bool, parse_pairs, warn_unhandled
+from moosdb_py.formats import parse_pairs
+from oilspill_moos.app_config import config_bool, warn_unhandled
 
 log = logging.getLogger(__name__)
 

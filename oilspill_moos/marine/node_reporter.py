@@ -12,13 +12,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import format_number
 from oilspill_moos.app_config import (
     ConfigLike,
     ConfigValueError,
     config_bool,
     config_float,
     config_str,
-    format_number,
     parse_float,
     read_params,
     warn_unhandled,
@@ -243,11 +243,11 @@ class NodeReportBuilder:
         p = self.params
         fields: list[tuple[str, str]] = [("NAME", self.name)]
         if not p.coord_policy_global and "x" in pos and "y" in pos:
-            fields += [("X", format_number(pos["x"])), ("Y", format_number(pos["y"]))]
+            fields += [("X", format_number(pos["x"], 2)), ("Y", format_number(pos["y"], 2))]
         hdg = self.nav.get("hdg", 0.0)
-        fields += [("SPD", format_number(self.nav.get("spd", 0.0))), ("HDG", format_number(hdg))]
+        fields += [("SPD", format_number(self.nav.get("spd", 0.0), 2)), ("HDG", format_number(hdg, 2))]
         if not p.terse_reports:
-            fields.append(("DEP", format_number(self.nav.get("dep", 0.0))))
+            fields.append(("DEP", format_number(self.nav.get("dep", 0.0), 2)))
         if "lat" in pos and "lon" in pos and (not p.terse_reports or p.coord_policy_global):
             fields += [("LAT", format_number(pos["lat"], 8)), ("LON", format_number(pos["lon"], 8))]
         fields.append(("TYPE", p.platform_type))
@@ -267,11 +267,11 @@ class NodeReportBuilder:
             fields.append(("YAW", format_number(yaw_from_heading(hdg), 7)))
         fields.append(("TIME", format_number(now, 2)))
         if self.transparency is not None:
-            fields.append(("TRANSPARENCY", format_number(self.transparency)))
+            fields.append(("TRANSPARENCY", format_number(self.transparency, 2)))
         if p.platform_length:
-            fields.append(("LENGTH", format_number(p.platform_length)))
+            fields.append(("LENGTH", format_number(p.platform_length, 2)))
         if p.platform_beam:
-            fields.append(("BEAM", format_number(p.platform_beam)))
+            fields.append(("BEAM", format_number(p.platform_beam, 2)))
         self.index += 1
         if p.blackout_interval > 0.0:
             jitter = self.rng.uniform(-p.blackout_variance, p.blackout_variance) if p.blackout_variance else 0.0

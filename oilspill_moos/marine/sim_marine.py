@@ -13,13 +13,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import format_number
 from oilspill_moos.app_config import (
     ConfigLike,
     ConfigValueError,
     config_bool,
     config_float,
     config_str,
-    format_number,
     parse_bool,
     parse_float,
     read_params,
@@ -426,8 +426,8 @@ PUBLICATIONS (every second iteration, with prefix NAV):
         self.notify(f"{prefix}_SPEED_OVER_GROUND", self.last_result.speed_over_ground, now)
         if self.water_depth > 0.0:
             self.notify(f"{prefix}_ALTITUDE", max(0.0, self.water_depth - s.depth), now)
-        summary = (f"ang={format_number(self.model.drift_angle)},mag={format_number(self.model.drift_magnitude)},"
-                   f"xmag={format_number(self.model.drift_x)},ymag={format_number(self.model.drift_y)}")
+        summary = (f"ang={format_number(self.model.drift_angle, 2)},mag={format_number(self.model.drift_magnitude, 2)},"
+                   f"xmag={format_number(self.model.drift_x, 2)},ymag={format_number(self.model.drift_y, 2)}")
         if summary != self._drift_summary_posted:
             self.notify("USM_DRIFT_SUMMARY", summary, now)
             self._drift_summary_posted = summary

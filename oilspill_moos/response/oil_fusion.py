@@ -26,8 +26,8 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import (ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params,
-                                      warn_unhandled)
+from moosdb_py.formats import format_number, parse_pairs
+from oilspill_moos.app_config import ConfigValueError, config_float, config_str, read_params, warn_unhandled
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 
@@ -76,8 +76,8 @@ def _flag(text: str) -> bool:
 
 
 def format_observation(obs: Observation) -> str:
-    text = (f"vname={obs.vname},id={obs.id},utc={obs.utc:.2f},x={format_number(obs.x)},y={format_number(obs.y)},"
-            f"oil={int(obs.oil)},range={format_number(obs.range_m)}")
+    text = (f"vname={obs.vname},id={obs.id},utc={obs.utc:.2f},x={format_number(obs.x, 2)},y={format_number(obs.y, 2)},"
+            f"oil={int(obs.oil)},range={format_number(obs.range_m, 2)}")
     return text + (f",thickness={obs.thickness}" if obs.thickness else "")
 
 
@@ -313,7 +313,7 @@ PUBLICATIONS:
         if self.forecast is None or not observations:
             return
         scores = skill(self.forecast, observations, self.max_gap)
-        fields = {"cycle": self.collector.cycle, **{k: (format_number(v) if isinstance(v, float) and
+        fields = {"cycle": self.collector.cycle, **{k: (format_number(v, 2) if isinstance(v, float) and
                                                         math.isfinite(v) else v) for k, v in scores.items()},
                   "rejected": sum(self.collector.rejected.values()), "duplicates": self.collector.duplicates}
         self.notify("OIL_FUSION_SKILL", ",".join(f"{k}={v}" for k, v in fields.items()))

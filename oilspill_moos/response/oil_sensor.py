@@ -18,7 +18,8 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params, warn_unhandled
+from moosdb_py.formats import parse_pairs
+from oilspill_moos.app_config import ConfigValueError, config_float, config_str, read_params, warn_unhandled
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.response.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
 

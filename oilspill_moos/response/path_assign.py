@@ -18,8 +18,9 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from behaviors.geometry import fmt_num
+from moosdb_py import formats
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import FormatError, format_number, parse_pairs
 from oilspill_moos.app_config import config_float, config_str
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.response.planner import (
@@ -58,25 +59,14 @@ class Boundary:
         return None if self.time is None else self.time - 3600.0 * self.horizon_h
 
 
-_PTS = re.compile(r"^\s*pts\s*=\s*\{(?P<body>[^}]*)\}\s*(?:,.*)?$", re.IGNORECASE)
-
-
 def parse_polygon_spec(text: str) -> list[tuple[float, float]]:
     """`pts={x1,y1:x2,y2:...}[,label=..]` -> vertices (a third number per vertex, z, is ignored)."""
-    match = _PTS.match(text)
-    if not match:
+    if "pts={" not in "".join(text.split()).lower():
         raise BoundaryError("expected a JSON object or pts={x1,y1:x2,y2:...}")
-    vertices = []
-    for index, item in enumerate(match["body"].split(":")):
-        fields = [f.strip() for f in item.split(",")]
-        try:
-            x, y = float(fields[0]), float(fields[1])
-        except (ValueError, IndexError):
-            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} is not x,y") from None
-        if len(fields) > 3:
-            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} has more than x,y,z")
-        vertices.append((x, y))
-    return vertices
+    try:
+        return formats.parse_seglist(text)
+    except FormatError as err:
+        raise BoundaryError(str(err)) from None
 
 
 def parse_boundary_line(line: str, grid=None) -> Boundary:
@@ -126,7 +116,7 @@ def parse_boundary_line(line: str, grid=None) -> Boundary:
 
 def format_points(points: Iterable[Iterable[float]]) -> str:
     """Vertices as the `x,y:x,y` list BHV_Waypoint reads (decimetre precision)."""
-    return ":".join(f"{x:.1f},{y:.1f}" for x, y in points)
+    return formats.format_points(points, 1, fixed=True)
 
 
 _UNSAFE = re.compile(r"[\s,={}#]+")
@@ -138,10 +128,10 @@ def format_forecast(boundary: Boundary, cycle: int) -> str:
     `pts={..}` goes last and the source loses the characters that separate MOOS fields, so the
     string splits on commas outside the braces like any VIEW_* string.
     """
-    fields = [f"cycle={cycle}", f"horizon={fmt_num(boundary.horizon_h)}"]
+    fields = [f"cycle={cycle}", f"horizon={format_number(boundary.horizon_h, 3)}"]
     if boundary.time is not None:
-        fields.append(f"valid={fmt_num(boundary.time)}")
-    fields += [f"uncertainty={fmt_num(boundary.uncertainty_m)}",
+        fields.append(f"valid={format_number(boundary.time, 3)}")
+    fields += [f"uncertainty={format_number(boundary.uncertainty_m, 3)}",
                f"source={_UNSAFE.sub('_', boundary.source) or 'unknown'}",
                f"pts={{{format_points(boundary.polygon)}}}"]
     return ",".join(fields)
@@ -149,12 +139,7 @@ def format_forecast(boundary: Boundary, cycle: int) -> str:
 
 def parse_report(text: str) -> dict[str, str]:
     """`KEY=val,KEY=val` (NODE_REPORT, VEHICLE_COORDINATES) -> dict with lower-case keys."""
-    fields = {}
-    for item in text.split(","):
-        key, sep, value = item.partition("=")
-        if sep:
-            fields[key.strip().lower()] = value.strip()
-    return fields
+    return parse_pairs(text)
 
 
 @dataclass
@@ -345,7 +330,7 @@ class Coordinator:
             "dropped": sum(v.dropped for v in self.vehicles.values()),
             "boundaries": self.seq,
             "cycle": self.cycles,
-            "horizon": -1 if self.horizon is None else fmt_num(self.horizon),
+            "horizon": -1 if self.horizon is None else format_number(self.horizon, 3),
             "boundary_age": -1 if self.boundary_received is None else round(now - self.boundary_received, 1),
         }
 
