@@ -17,6 +17,7 @@ import time as _time
 from pathlib import Path
 
 from .client import MOOSClient
+from .config import Params, read_params
 from .formats import print_page
 from .message import MOOSMsg
 from .mission import Mission, ProcessConfig, Where, db_address, read_mission
@@ -44,12 +45,15 @@ class MOOSApp:
     default_name = "pMyApp"
     example_config = ""
     interface = ""
+    parameters: Params | None = None   # the app's ProcessConfig parameters; None: the app reads its block itself
 
     def __init__(self, mission_file: str | Path | None = None, name: str | None = None, *,
                  host: str | None = None, port: int | None = None, time_warp: float | None = None):
         self.name = name or self.default_name
         self.mission: Mission | None = read_mission(mission_file) if mission_file else None
         self.config: ProcessConfig = self._find_config()
+        if self.parameters is not None:
+            self.parameters.warn_unhandled(self.config)
         host, port, self.time_warp = db_address(self.mission, host, port, time_warp)
         self.app_tick = self._positive("AppTick", DEFAULT_APP_TICK)
         self.comms_tick = self._positive("CommsTick", DEFAULT_COMMS_TICK)   # read as MOOS does; async comms ignore it
@@ -83,6 +87,10 @@ class MOOSApp:
         if value <= 0:
             raise entry.source.error(f"{key} = {entry.value!r} is not a positive number")
         return value
+
+    def read_settings(self) -> dict:
+        """Every declared parameter's typed value (or default); a bad value raises naming its file:line."""
+        return read_params(self.config, self.parameters.read)
 
     # -- hooks for subclasses ------------------------------------------------------------------
     def on_startup(self) -> None:

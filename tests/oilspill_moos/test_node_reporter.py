@@ -113,7 +113,7 @@ def test_pause_and_blackout():
 
 
 def test_platform_report_gap_and_alias():
-    params = ReporterParams.from_config({}, ["BATTERY,gap=10,alias=BATT", "WIFI"])
+    params = ReporterParams.from_config({"plat_report_input": ["BATTERY,gap=10,alias=BATT", "WIFI"]})
     b = NodeReportBuilder("abe", params)
     assert b.platform_report(0.0) is None
     b.on_mail("BATTERY", 12.5, 0.0)

@@ -212,7 +212,7 @@ def test_real_mission_blocks_are_accepted(name):
     mission = read_mission(CORPUS / name)
     readers = {"usimmarine": SimParams.from_config, "usimmarinev22": SimParams.from_config,
                "pmarinepid": PIDParams.from_config, "pmarinepidv22": PIDParams.from_config,
-               "pnodereporter": lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input"))}
+               "pnodereporter": ReporterParams.from_config}
     blocks = [b for b in mission.blocks if b.name.lower() in readers]
     assert len(blocks) == 3
     for block in blocks:
