@@ -132,7 +132,7 @@ def test_platform_report_gap_and_alias():
                                               ({}, ["V,gap=x"], "plat_report_input gap")])
 def test_bad_config_names_the_parameter(cfg, plat, word):
     with pytest.raises(ValueError, match=word):
-        ReporterParams.from_config(cfg, plat)
+        ReporterParams.from_config({**cfg, "plat_report_input": plat})
 
 
 def test_summary_modes_and_plat_input_parse():
