@@ -25,8 +25,11 @@ class ConfigLike(Protocol):
 
 log = logging.getLogger("moosdb_py.config")
 
-# What CMOOSApp itself reads from every block (MaxAppTick caps the rate of an app woken by mail).
-MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxapptick", "maxappticks", "iteratemode", "verbose", "debug"})
+# What CMOOSApp and AppCastingMOOSApp read from every block (MaxAppTick caps the rate of an app woken by
+# mail; this base runs every app at AppTick, so it is accepted and has no effect).
+MOOS_APP_KEYS = frozenset({"apptick", "commstick", "maxapptick", "maxappticks", "iteratemode", "verbose", "debug",
+                           "sortmailbytime", "catchcommandmessages", "app_logging", "term_reporting",
+                           "max_appcast_events", "max_appcast_run_warnings"})
 
 
 class ConfigValueError(ValueError):

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from moosdb_py.app import MOOSApp
 from moosdb_py.codec import CodecError, decode_message, encode_message
 from moosdb_py.message import NOTIFY, MOOSMsg
+from moosdb_py.config import Param, Params
 from moosdb_py.formats import FormatError, parse_pairs, wild_match
 
 log = logging.getLogger(__name__)
@@ -27,8 +28,13 @@ DEFAULT_MULTICAST_BASE_PORT = 24460
 MULTICAST_CHANNELS = 256
 KNOWN_OUTPUT_FIELDS = {"src_name", "dest_name", "route", "frequency", "cmd"}
 KNOWN_INPUT_FIELDS = {"route", "cmd"}
-CONFIG_KEYS = {"input", "output", "multicast_address", "multicast_base_port",
-               "apptick", "commstick", "maxapptick", "iteratemode", "sortmailbytime", "catchcommandmessages"}
+SHARE_PARAMS = Params(
+    Param("input", list, [], "`route = host:port[ & ...]`: listen for other communities' datagrams (repeatable)"),
+    Param("output", list, [], "`src_name = X, dest_name = Y, route = host:port[ & ...], frequency = Hz` or "
+                              "`X->Y:host:port@Hz` (repeatable)"),
+    Param("multicast_address", str, DEFAULT_MULTICAST_ADDRESS, "the group multicast_N routes use"),
+    Param("multicast_base_port", str, str(DEFAULT_MULTICAST_BASE_PORT), "multicast_N is this port + N"),
+)
 
 
 class ShareConfigError(ValueError):
@@ -333,6 +339,7 @@ class Share(MOOSApp):
     """
 
     default_name = "pShare"
+    parameters = SHARE_PARAMS
     example_config = """\
 ProcessConfig = pShare
 {
@@ -414,8 +421,6 @@ PUBLICATIONS:
                     apply(item if flag in ("-o", "--output") else f"route={item}", warnings)
                 except (ShareConfigError, OSError) as exc:
                     raise ValueError(f"command line {flag}: {exc}") from None
-        warnings += [f"{e.source}: unhandled parameter {e.key!r}" for e in cfg.entries
-                     if e.key.lower() not in CONFIG_KEYS]
         for warning in warnings:
             log.warning("%s: %s", self.name, warning)
 

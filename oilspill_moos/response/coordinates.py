@@ -8,7 +8,7 @@ navigation solution is known.
 from __future__ import annotations
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_str, warn_unhandled
+from moosdb_py.config import Param, Params
 
 
 def coordinates_report(vname: str, x: float, y: float, utc: float) -> str:
@@ -21,6 +21,7 @@ class Coordinates(MOOSApp):
     and on every REPORT_COORDINATES request, for pPathAssign's planning cycle."""
 
     default_name = "pCoordinates"
+    parameters = Params(Param("vname", str, "", "name put in the report; default: the mission's Community"))
     example_config = """\
 ProcessConfig = pCoordinates
 {
@@ -43,8 +44,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         community = self.mission.community if self.mission is not None else ""
-        self.vname = config_str(self.config, "vname", community or self.name).lower()
-        warn_unhandled(self.config, {"vname"})
+        self.vname = (self.read_settings()["vname"] or community or self.name).lower()
         self.nav_x: float | None = None
         self.nav_y: float | None = None
         self.station_keeping = False

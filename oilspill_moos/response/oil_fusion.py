@@ -27,7 +27,7 @@ from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import format_number, parse_pairs
-from oilspill_moos.app_config import ConfigValueError, config_float, config_str, read_params, warn_unhandled
+from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 
@@ -203,6 +203,17 @@ def polygon_string(polygon: Polygon, label: str) -> str:
     return "pts={" + ":".join(f"{x:.1f},{y:.1f}" for x, y in coords) + "}," + f"label={label}"
 
 
+FUSION_PARAMS = Params(
+    Param("fleet", str, "", "vehicles whose observations count, abe:ben:cal; empty: any"),
+    Param("operating_area", str, "", "pts={x,y:...} observations must lie in; empty: use the radius"),
+    Param("operating_radius", float, 0.0, "m about the origin observations must lie within; 0: anywhere", lo=0),
+    Param("map_scale", float, 1.0, "as uFldOilSensor's: mission metres per real metre", lo=1e-6),
+    Param("max_flip_gap", float, 50.0, "m: consecutive samples further apart give no edge point", lo=0),
+    Param("feedback_file", str, "", "JSON-lines file for `oilspill-forecaster --feedback`; empty: none"),
+    Param("report_interval", float, 5.0, "s between OIL_FUSION_SKILL / OIL_OBSERVED_EDGE posts", lo=0.1),
+)
+
+
 class OilFusion(MOOSApp):
     """uFldOilFusion: collects the fleet's OIL_OBSERVATION reports per forecast cycle (a new
     OILSPILL_BOUNDARY starts one), rejects unknown vehicles, positions outside the operating area
@@ -211,6 +222,7 @@ class OilFusion(MOOSApp):
     every accepted observation (in the scenario's lon/lat) to the forecaster's feedback file."""
 
     default_name = "uFldOilFusion"
+    parameters = FUSION_PARAMS
     example_config = """\
 ProcessConfig = uFldOilFusion
 {
@@ -240,26 +252,23 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         read_params(self.config, self._read)
-        warn_unhandled(self.config, FUSION_CONFIG_KEYS)
         self.forecast: Polygon | None = None
         self._last_report = -math.inf
 
     def _read(self, cfg) -> None:
         from oilspill_moos.response.path_assign import BoundaryError, operating_area
 
-        fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
+        v = FUSION_PARAMS.read(cfg)
+        fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", v["fleet"]) if n)
         try:
-            area = operating_area(config_str(cfg, "operating_area", ""),
-                                  config_float(cfg, "operating_radius", 0.0, lo=0))
+            area = operating_area(v["operating_area"], v["operating_radius"])
         except BoundaryError as exc:
             raise ConfigValueError("operating_area", str(exc)) from None
         self.collector = ObservationCollector(fleet=fleet, area=area)
-        self.max_gap = config_float(cfg, "max_flip_gap", 50.0, lo=0)
-        self.report_interval = config_float(cfg, "report_interval", 5.0, lo=0.1)
-        feedback = config_str(cfg, "feedback_file", "")
-        self.feedback_file = Path(feedback) if feedback else None
+        self.max_gap, self.report_interval = v["max_flip_gap"], v["report_interval"]
+        self.feedback_file = Path(v["feedback_file"]) if v["feedback_file"] else None
         grid = mission_grid(self.mission)
-        self.world = ScenarioMap(grid, config_float(cfg, "map_scale", 1.0, lo=1e-6)) if grid is not None else None
+        self.world = ScenarioMap(grid, v["map_scale"]) if grid is not None else None
         if self.feedback_file is not None and self.world is None:
             raise ConfigValueError("feedback_file", "needs LatOrigin and LongOrigin in the mission file")
 
@@ -326,7 +335,5 @@ PUBLICATIONS:
                 "rejected": sum(self.collector.rejected.values()), "duplicates": self.collector.duplicates}
 
 
-FUSION_CONFIG_KEYS = frozenset({
-    "fleet", "operating_area", "operating_radius", "max_flip_gap", "report_interval", "feedback_file", "map_scale"})
 
 main = OilFusion.main

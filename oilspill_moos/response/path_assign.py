@@ -21,7 +21,7 @@ from shapely.geometry import Point, Polygon
 from moosdb_py import formats
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import FormatError, format_number, parse_pairs
-from oilspill_moos.app_config import config_float, config_str
+from moosdb_py.config import Param, Params
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.response.planner import (
     Plan,
@@ -484,6 +484,28 @@ def operating_area(spec: str | None, radius: float) -> Polygon | None:
 MAX_LINE = 1 << 20  # a forecast outline of ~20000 vertices; longer lines are refused, not buffered
 
 
+PATH_ASSIGN_PARAMS = Params(
+    Param("boundary_host", str, "127.0.0.1", "TCP boundary server address (loopback unless you mean it)"),
+    Param("boundary_port", int, 9100, "its port", 0, 65535),
+    Param("fleet", str, "", "expected vehicles, abe:ben:cal; empty: whoever reports"),
+    Param("standoff", float, 50.0, "metres the loop stays outside the predicted boundary", lo=0),
+    Param("coordinate_timeout", float, 30.0, "s to wait for every VEHICLE_COORDINATES before planning", lo=0),
+    Param("arrival_timeout", float, 600.0, "s after which the loops start even if someone is not at its point", lo=0),
+    Param("node_timeout", float, 20.0, "s without NODE_REPORT before a vehicle is dropped", lo=0),
+    Param("capture_radius", float, 10.0, "m from its start that counts as arrived (backs up the flag)", lo=0),
+    Param("transit_speed", float, 2.0, "m/s used to estimate arrival when choosing a forecast horizon", lo=1e-3),
+    Param("loop_speed", float, 0.0, "m/s sent with the loops; 0 keeps the vehicles' own setting", lo=0),
+    Param("min_replan_interval", float, 10.0, "s between accepted boundaries of different forecasts", lo=0),
+    Param("forecast_window", float, 5.0, "s to collect the lines (horizons) of one forecast before choosing", lo=0),
+    Param("forecast_horizons", str, "3:7:11:15", "h a forecast brings; once all are in the choice need not wait"),
+    Param("replan_distance", float, 25.0, "m a late line of the forecast in force must move the loop to re-plan", lo=0),
+    Param("heartbeat_interval", float, 5.0, "s between SHORE_HEARTBEAT_ALL posts (vehicle watchdogs)", lo=0.1),
+    Param("status_interval", float, 2.0, "s between OILSPILL_STATUS posts", lo=0.1),
+    Param("operating_area", str, "", "pts={x,y:...}: boundaries must touch it; empty: use the radius"),
+    Param("operating_radius", float, 0.0, "m about the origin boundaries must touch; 0: anywhere", lo=0),
+)
+
+
 class PathAssign(MOOSApp):
     """pPathAssign: receives predicted spill boundaries over TCP (one JSON or pts={} line each,
     answered `OK <seq>` or `ERR <reason>`) and leads the fleet through STATION-KEEPING ->
@@ -491,6 +513,7 @@ class PathAssign(MOOSApp):
     vehicle drops out or comes back."""
 
     default_name = "pPathAssign"
+    parameters = PATH_ASSIGN_PARAMS
     example_config = """\
 ProcessConfig = pPathAssign
 {
@@ -548,31 +571,19 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        cfg = self.config
-        fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
-        self.coordinator = Coordinator(Settings(
-            standoff=config_float(cfg, "standoff", 50.0, lo=0),
-            coordinate_timeout=config_float(cfg, "coordinate_timeout", 30.0, lo=0),
-            arrival_timeout=config_float(cfg, "arrival_timeout", 600.0, lo=0),
-            node_timeout=config_float(cfg, "node_timeout", 20.0, lo=0),
-            capture_radius=config_float(cfg, "capture_radius", 10.0, lo=0),
-            transit_speed=config_float(cfg, "transit_speed", 2.0, lo=1e-3),
-            loop_speed=config_float(cfg, "loop_speed", 0.0, lo=0),
-            min_replan_interval=config_float(cfg, "min_replan_interval", 10.0, lo=0),
-            forecast_window=config_float(cfg, "forecast_window", 5.0, lo=0),
-            forecast_horizons=self._horizons(),
-            replan_distance=config_float(cfg, "replan_distance", 25.0, lo=0),
-            heartbeat_interval=config_float(cfg, "heartbeat_interval", 5.0, lo=0.1),
-            status_interval=config_float(cfg, "status_interval", 2.0, lo=0.1),
-            fleet=fleet,
-            operating_area=self._operating_area(),
-        ))
+        v = self.settings = self.read_settings()
+        fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", v["fleet"]) if n)
+        same = ("standoff", "coordinate_timeout", "arrival_timeout", "node_timeout", "capture_radius", "transit_speed",
+                "loop_speed", "min_replan_interval", "forecast_window", "replan_distance", "heartbeat_interval",
+                "status_interval")
+        self.coordinator = Coordinator(Settings(forecast_horizons=self._horizons(v["forecast_horizons"]), fleet=fleet,
+                                                operating_area=self._operating_area(), **{k: v[k] for k in same}))
         lat = self.mission.lat_origin if self.mission is not None else None
         lon = self.mission.long_origin if self.mission is not None else None
         self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
 
-    def _horizons(self) -> tuple[float, ...]:
-        text = config_str(self.config, "forecast_horizons", "3:7:11:15")
+    @staticmethod
+    def _horizons(text: str) -> tuple[float, ...]:
         try:
             horizons = tuple(float(h) for h in re.split(r"[\s:,]+", text) if h)
         except ValueError:
@@ -583,8 +594,7 @@ PUBLICATIONS:
 
     def _operating_area(self) -> Polygon | None:
         try:
-            return operating_area(config_str(self.config, "operating_area", ""),
-                                  config_float(self.config, "operating_radius", 0.0, lo=0))
+            return operating_area(self.settings["operating_area"], self.settings["operating_radius"])
         except BoundaryError as exc:
             raise ValueError(f"operating_area: {exc}") from None
 
@@ -595,8 +605,8 @@ PUBLICATIONS:
 
     async def run_async(self):
         """The boundary server shares the app's event loop; a port in use stops the app with its error."""
-        self.boundary_host = config_str(self.config, "boundary_host", "127.0.0.1")
-        self.boundary_port = int(config_float(self.config, "boundary_port", 9100, lo=0, hi=65535))
+        settings = self.read_settings()
+        self.boundary_host, self.boundary_port = settings["boundary_host"], settings["boundary_port"]
         self.lines_ok = self.lines_refused = 0
         server = await asyncio.start_server(self._serve, self.boundary_host, self.boundary_port, limit=MAX_LINE)
         self.boundary_port = server.sockets[0].getsockname()[1]
