@@ -9,11 +9,7 @@ from __future__ import annotations
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
-
-
-def coordinates_report(vname: str, x: float, y: float, utc: float) -> str:
-    """The VEHICLE_COORDINATES value pPathAssign reads."""
-    return f"vname={vname},x={x:.2f},y={y:.2f},utc={utc:.2f}"
+from oilspill_moos.messages import coordinates_report
 
 
 class Coordinates(MOOSApp):

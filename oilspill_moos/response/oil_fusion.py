@@ -6,10 +6,8 @@ range the sensor's detection radius: oil=1 means "oil within range metres"). The
 one forecast cycle's observations, throwing out (with a reason) what cannot be trusted; the
 boundary estimate and the skill score compare what the vessels saw with the forecast in force.
 
-`ScenarioMap` ties the mission's local frame to the world of a spill scenario: a simulated
-fleet cannot circle a 10 km slick at 2 m/s in a test, so the scenario is shrunk about the
-mission origin by `map_scale` (1 = true size); everything that crosses between the MOOS side and
-the forecaster goes through it.
+The messages' codecs live in oilspill_moos.messages; the scenario's placement in the mission
+frame in `scenario_map.ScenarioMap`.
 """
 from __future__ import annotations
 
@@ -26,59 +24,18 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import format_number, parse_pairs
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
-from oilspill_moos.geodesy import LocalGrid, mission_grid
-
-
-class ObservationRejected(ValueError):
-    """An observation the fusion will not use; str() is the reason posted in OIL_FUSION_WARNING."""
-
-
-@dataclass(frozen=True)
-class Observation:
-    vname: str
-    id: int
-    utc: float
-    x: float
-    y: float
-    oil: bool
-    range_m: float = 0.0
-    thickness: str = ""
-
-
-def parse_observation(text: str) -> Observation:
-    """`vname=abe,id=3,utc=..,x=..,y=..,oil=1,range=..` -> Observation, or ObservationRejected saying why."""
-    try:
-        fields = parse_pairs(text)
-    except ValueError as exc:
-        raise ObservationRejected(f"malformed observation {text!r}: {exc}") from None
-    missing = [k for k in ("vname", "id", "utc", "x", "y", "oil") if k not in fields]
-    if missing:
-        raise ObservationRejected(f"observation {text!r} lacks {', '.join(missing)}")
-    try:
-        obs = Observation(vname=fields["vname"].lower(), id=int(fields["id"]), utc=float(fields["utc"]),
-                          x=float(fields["x"]), y=float(fields["y"]), oil=_flag(fields["oil"]),
-                          range_m=float(fields.get("range", 0.0)), thickness=fields.get("thickness", ""))
-    except ValueError:
-        raise ObservationRejected(f"observation {text!r}: id, utc, x, y, range must be numbers, oil 0 or 1") from None
-    if not all(map(math.isfinite, (obs.utc, obs.x, obs.y, obs.range_m))) or obs.range_m < 0:
-        raise ObservationRejected(f"observation {text!r}: non-finite number or negative range")
-    return obs
-
-
-def _flag(text: str) -> bool:
-    if text.lower() in ("1", "true"):
-        return True
-    if text.lower() in ("0", "false"):
-        return False
-    raise ValueError(text)
-
-
-def format_observation(obs: Observation) -> str:
-    text = (f"vname={obs.vname},id={obs.id},utc={obs.utc:.2f},x={format_number(obs.x, 2)},y={format_number(obs.y, 2)},"
-            f"oil={int(obs.oil)},range={format_number(obs.range_m, 2)}")
-    return text + (f",thickness={obs.thickness}" if obs.thickness else "")
+from moosdb_py.formats import format_number
+from oilspill_moos.geodesy import mission_grid
+from oilspill_moos.messages import (
+    BoundaryError,
+    Observation,
+    ObservationRejected,
+    operating_area,
+    parse_observation,
+    parse_polygon_string,
+)
+from oilspill_moos.response.scenario_map import ScenarioMap
 
 
 @dataclass
@@ -171,38 +128,6 @@ def skill(forecast: BaseGeometry, observations: list[Observation], max_gap_m: fl
             "agreement": float(np.mean(predicted == seen)), "flips": len(flips), "boundary_error_m": error}
 
 
-@dataclass(frozen=True)
-class ScenarioMap:
-    """Mission local metres <-> a scenario's lon/lat, the scenario shrunk by `map_scale` about the origin."""
-
-    grid: LocalGrid
-    map_scale: float = 1.0
-
-    def __post_init__(self):
-        if not (math.isfinite(self.map_scale) and self.map_scale > 0):
-            raise ValueError(f"map_scale {self.map_scale!r} must be a positive number")
-
-    def to_lonlat(self, x, y) -> tuple[np.ndarray, np.ndarray]:
-        lat, lon = self.grid.to_latlon(np.asarray(x, float) / self.map_scale, np.asarray(y, float) / self.map_scale)
-        return np.asarray(lon), np.asarray(lat)
-
-    def to_local(self, geometry: BaseGeometry) -> BaseGeometry:
-        """An EPSG:4326 geometry ([lon, lat] coordinates) in mission metres."""
-        def forward(coords):
-            x, y = self.grid.to_local(coords[:, 1], coords[:, 0])
-            return np.column_stack([x, y]) * self.map_scale
-        return shapely.transform(geometry, forward)
-
-    def real_metres(self, metres: float) -> float:
-        return metres / self.map_scale
-
-
-def polygon_string(polygon: Polygon, label: str) -> str:
-    """A MOOS `pts={x,y:...},label=..` spec of a polygon's exterior, for viewers."""
-    coords = np.asarray(polygon.exterior.coords)[:-1]
-    return "pts={" + ":".join(f"{x:.1f},{y:.1f}" for x, y in coords) + "}," + f"label={label}"
-
-
 FUSION_PARAMS = Params(
     Param("fleet", str, "", "vehicles whose observations count, abe:ben:cal; empty: any"),
     Param("operating_area", str, "", "pts={x,y:...} observations must lie in; empty: use the radius"),
@@ -256,8 +181,6 @@ PUBLICATIONS:
         self._last_report = -math.inf
 
     def _read(self, cfg) -> None:
-        from oilspill_moos.response.path_assign import BoundaryError, operating_area
-
         v = FUSION_PARAMS.read(cfg)
         fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", v["fleet"]) if n)
         try:
@@ -292,15 +215,14 @@ PUBLICATIONS:
             self._write_feedback(accepted)
 
     def _new_cycle(self, spec: str) -> None:
-        from oilspill_moos.response.path_assign import BoundaryError, parse_polygon_spec
-
         try:
-            polygon = shapely.make_valid(Polygon(parse_polygon_spec(spec)))
+            vertices, fields = parse_polygon_string(spec)
+            polygon = shapely.make_valid(Polygon(vertices))
         except (BoundaryError, ValueError) as exc:
             self.notify("OIL_FUSION_WARNING", f"OILSPILL_BOUNDARY {spec[:60]!r}: {exc}")
             return
         self._post_report()      # the ending cycle's last word
-        label = parse_pairs(spec.partition("}")[2].lstrip(",")).get("label", "")
+        label = fields.get("label", "")
         self.forecast = polygon
         self.collector.begin_cycle(label)
 

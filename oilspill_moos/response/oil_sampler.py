@@ -12,7 +12,7 @@ import math
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
-from oilspill_moos.response.oil_fusion import ObservationRejected, format_observation, parse_observation
+from oilspill_moos.messages import ObservationRejected, format_observation, format_request, parse_observation
 
 SUBSCRIPTIONS = ("NAV_X", "NAV_Y", "OILSPILL_PHASE", "OIL_SENSOR_REPORT")
 
@@ -105,7 +105,7 @@ PUBLICATIONS:
         self.last_request = now
         ident, self.next_id = self.next_id, self.next_id + 1
         self.pending = {i for i in self.pending if i > ident - 100} | {ident}   # forget long-lost requests
-        self.notify("OIL_SENSOR_REQUEST", f"vname={self.vname},id={ident},x={self.nav_x:.2f},y={self.nav_y:.2f}")
+        self.notify("OIL_SENSOR_REQUEST", format_request(self.vname, ident, self.nav_x, self.nav_y))
 
     def status_fields(self) -> dict:
         return {"requested": self.next_id - 1, "reported": self.reported, "unanswered": len(self.pending),

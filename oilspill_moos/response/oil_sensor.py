@@ -5,7 +5,7 @@ the shoreside holds the ground truth, a vehicle asks (`OIL_SENSOR_REQUEST`, brid
 community), and the answer goes back on `OIL_SENSOR_REPORT_<V>` (qbridged to the vehicle). The
 truth is a scenario of the forecaster's committed OpenOil dataset: its hourly polygons replayed on
 the mission's warped clock, shrunk by `map_scale` about the mission origin (see
-`oil_fusion.ScenarioMap`). Replies carry the simulated world's time (`utc`, the scenario clock),
+`scenario_map.ScenarioMap`). Replies carry the simulated world's time (`utc`, the scenario clock),
 so what the fleet reports can be set against the forecaster's own polygon times.
 """
 from __future__ import annotations
@@ -21,7 +21,8 @@ from moosdb_py.app import MOOSApp
 from moosdb_py.formats import parse_pairs
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
-from oilspill_moos.response.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
+from oilspill_moos.messages import Observation, format_observation, parse_request, polygon_string
+from oilspill_moos.response.scenario_map import ScenarioMap
 
 THICKNESS_CLASSES = ("sheen", "thick")
 
@@ -78,20 +79,6 @@ class SensorModel:
             return detected, ""
         depth = spill.boundary.distance(point) if spill.contains(point) else 0.0
         return True, THICKNESS_CLASSES[depth >= self.thickness_depth]
-
-
-def parse_request(text: str) -> tuple[str, int, float, float]:
-    """`vname=abe,id=3,x=..,y=..` -> (vname, id, x, y); ValueError naming what is wrong."""
-    fields = parse_pairs(text)
-    try:
-        vname, ident, x, y = fields["vname"].lower(), int(fields["id"]), float(fields["x"]), float(fields["y"])
-    except KeyError as exc:
-        raise ValueError(f"request {text!r} lacks {exc.args[0]}") from None
-    except ValueError:
-        raise ValueError(f"request {text!r}: id, x, y must be numbers") from None
-    if not vname or not (math.isfinite(x) and math.isfinite(y)):
-        raise ValueError(f"request {text!r}: empty vname or non-finite position")
-    return vname, ident, x, y
 
 
 SENSOR_PARAMS = Params(

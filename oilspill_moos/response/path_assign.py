@@ -8,21 +8,28 @@ MOOSApp shell that owns the TCP server and the MOOS client.
 from __future__ import annotations
 
 import asyncio
-import json
 import math
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-import numpy as np
-import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Polygon
 
-from moosdb_py import formats
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import FormatError, format_number, parse_pairs
 from moosdb_py.config import Param, Params
+from moosdb_py.formats import format_number
 from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygon_spec: demo.py imports them from here)
+    Boundary,
+    BoundaryError,
+    format_forecast,
+    format_points,
+    operating_area,
+    parse_boundary_line,
+    parse_polygon_spec,
+    parse_report,
+    points_update,
+    polygon_string,
+)
 from oilspill_moos.response.planner import (
     Plan,
     PlanError,
@@ -37,109 +44,6 @@ IDLE = "IDLE"
 STATION_KEEPING = "STATION-KEEPING"
 STARTING_POSITION = "STARTING-POSITION"
 OIL_PATH = "OIL-PATH"
-
-
-class BoundaryError(ValueError):
-    """A boundary line pPathAssign refuses; str() goes back to the sender after `ERR `."""
-
-
-@dataclass(frozen=True)
-class Boundary:
-    """A predicted spill outline in local metres, with the forecast it came from."""
-
-    polygon: tuple[tuple[float, float], ...]
-    time: float | None = None     # when the outline is valid (UTC s): issue time + horizon
-    horizon_h: float = 0.0
-    uncertainty_m: float = 0.0
-    source: str = "tcp"
-
-    @property
-    def issued(self) -> float | None:
-        """When the forecast was made; the lines of one forecast (one per horizon) share it."""
-        return None if self.time is None else self.time - 3600.0 * self.horizon_h
-
-
-def parse_polygon_spec(text: str) -> list[tuple[float, float]]:
-    """`pts={x1,y1:x2,y2:...}[,label=..]` -> vertices (a third number per vertex, z, is ignored)."""
-    if "pts={" not in "".join(text.split()).lower():
-        raise BoundaryError("expected a JSON object or pts={x1,y1:x2,y2:...}")
-    try:
-        return formats.parse_seglist(text)
-    except FormatError as err:
-        raise BoundaryError(str(err)) from None
-
-
-def parse_boundary_line(line: str, grid=None) -> Boundary:
-    """One forecaster line -> Boundary in local metres.
-
-    JSON polygons in EPSG:4326 are [lon, lat] pairs (x before y, as pyproj's
-    always_xy) and need `grid` (the mission's LatOrigin/LongOrigin).
-    """
-    text = line.strip()
-    if not text:
-        raise BoundaryError("empty line")
-    if not text.startswith("{"):
-        return Boundary(polygon=tuple(parse_polygon_spec(text)), source="pts")
-    try:
-        message = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise BoundaryError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
-    if not isinstance(message, dict):
-        raise BoundaryError("JSON line must be an object")
-    if message.get("type", "boundary") != "boundary":
-        raise BoundaryError(f"unknown message type {message.get('type')!r}")
-    vertices = message.get("polygon")
-    if not isinstance(vertices, list) or not all(isinstance(v, list) and len(v) == 2 for v in vertices):
-        raise BoundaryError("'polygon' must be a list of [x, y] pairs")
-    try:
-        xy = np.asarray(vertices, dtype=float).reshape(-1, 2)
-        number = {key: float(message.get(key, default)) for key, default in
-                  (("horizon_h", 0.0), ("uncertainty_m", 0.0))}
-        stamp = None if message.get("time") is None else float(message["time"])
-    except (TypeError, ValueError):
-        raise BoundaryError("'polygon', 'time', 'horizon_h' and 'uncertainty_m' must be numbers") from None
-    if not np.all(np.isfinite(xy)) or not all(map(math.isfinite, number.values())):
-        raise BoundaryError("non-finite number in boundary")
-    crs = message.get("crs", "local")
-    if crs == "EPSG:4326":
-        if grid is None:
-            raise BoundaryError("EPSG:4326 boundary but the mission has no LatOrigin/LongOrigin")
-        if np.any(np.abs(xy[:, 1]) > 90) or np.any(np.abs(xy[:, 0]) > 180):
-            raise BoundaryError("EPSG:4326 polygon must be [lon, lat] pairs in degrees")
-        x, y = grid.to_local(xy[:, 1], xy[:, 0])
-        xy = np.column_stack([x, y])
-    elif crs != "local":
-        raise BoundaryError(f"crs must be 'EPSG:4326' or 'local', not {crs!r}")
-    return Boundary(polygon=tuple(map(tuple, xy.tolist())), time=stamp, source=str(message.get("source", "json")),
-                    **number)
-
-
-def format_points(points: Iterable[Iterable[float]]) -> str:
-    """Vertices as the `x,y:x,y` list BHV_Waypoint reads (decimetre precision)."""
-    return formats.format_points(points, 1, fixed=True)
-
-
-_UNSAFE = re.compile(r"[\s,={}#]+")
-
-
-def format_forecast(boundary: Boundary, cycle: int) -> str:
-    """OILSPILL_FORECAST: one accepted horizon with what a viewer needs to draw it and its band.
-
-    `pts={..}` goes last and the source loses the characters that separate MOOS fields, so the
-    string splits on commas outside the braces like any VIEW_* string.
-    """
-    fields = [f"cycle={cycle}", f"horizon={format_number(boundary.horizon_h, 3)}"]
-    if boundary.time is not None:
-        fields.append(f"valid={format_number(boundary.time, 3)}")
-    fields += [f"uncertainty={format_number(boundary.uncertainty_m, 3)}",
-               f"source={_UNSAFE.sub('_', boundary.source) or 'unknown'}",
-               f"pts={{{format_points(boundary.polygon)}}}"]
-    return ",".join(fields)
-
-
-def parse_report(text: str) -> dict[str, str]:
-    """`KEY=val,KEY=val` (NODE_REPORT, VEHICLE_COORDINATES) -> dict with lower-case keys."""
-    return parse_pairs(text)
 
 
 @dataclass
@@ -376,20 +280,18 @@ class Coordinator:
         if self.horizon == horizon and self._boundary_seq == self.forecast_seq[horizon]:
             return
         self.horizon, self._boundary_seq = horizon, self.forecast_seq[horizon]
-        self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(self.forecasts[horizon].polygon)}}},"
-                                        f"label=oilspill_{self._boundary_seq}")
+        self._post("OILSPILL_BOUNDARY", polygon_string(self.forecasts[horizon].polygon, f"oilspill_{self._boundary_seq}"))
 
     def _assign_starts(self, plan: Plan, now: float) -> None:
         self.plan = plan
         self.arrived = set()
         self._set_phase(STARTING_POSITION, now)
-        self._post("VIEW_POLYGON", f"pts={{{format_points(plan.region.exterior.coords[:-1])}}},"
-                                   f"label=standoff,edge_color=orange")
+        self._post("VIEW_POLYGON", polygon_string(plan.region, "standoff", edge_color="orange"))
         for name, start in plan.starts.items():
             suffix = name.upper()
             vehicle = self.vehicles[name]
             route = [start] if vehicle.x is None else transit_route(plan.region, (vehicle.x, vehicle.y), start)
-            self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points(route)}")
+            self._post(f"STARTING_POSITION_UPDATES_{suffix}", points_update(route))
             self._post(f"STATION_KEEP_{suffix}", "false")
             self._post(f"OILSPILL_PHASE_{suffix}", STARTING_POSITION)
         for name in plan.starts:  # someone may already be sitting on their point
@@ -402,11 +304,10 @@ class Coordinator:
 
     def _begin_oil_path(self, now: float) -> None:
         self._set_phase(OIL_PATH, now)
-        speed = f"#speed={self.settings.loop_speed:g}" if self.settings.loop_speed > 0 else ""
+        speed = {"speed": self.settings.loop_speed} if self.settings.loop_speed > 0 else {}
         for name in self.plan.starts:
             suffix = name.upper()
-            self._post(f"OIL_PATH_UPDATES_{suffix}",
-                       f"points={format_points(self.plan.loop(name))}#repeat=forever{speed}")
+            self._post(f"OIL_PATH_UPDATES_{suffix}", points_update(self.plan.loop(name), repeat="forever", **speed))
             self._post(f"STATION_KEEP_{suffix}", "false")
             self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
 
@@ -472,13 +373,6 @@ class Coordinator:
     def drain(self) -> list[tuple[str, str | float]]:
         posts, self.outbox = self.outbox, []
         return posts
-
-
-def operating_area(spec: str | None, radius: float) -> Polygon | None:
-    """`operating_area` (a pts={} polygon) wins over `operating_radius` (a circle about the origin)."""
-    if spec:
-        return Polygon(parse_polygon_spec(spec))
-    return shapely.buffer(Point(0.0, 0.0), radius) if radius > 0 else None
 
 
 MAX_LINE = 1 << 20  # a forecast outline of ~20000 vertices; longer lines are refused, not buffered
