@@ -41,13 +41,22 @@ class Scope:
 
     names: list[str]                                   # exact names and wildcard patterns
     sources: list[str] = field(default_factory=list)   # source patterns; empty = any
-    start: float = 0.0
+    start: float = 0.0        # (T)ime counts from here: the DB's start, as the C++ uXMS's time column
+    db_started: bool = False  # start comes from DB_UPTIME (until then: our own start on the DB's clock)
     latest: dict[str, MOOSMsg] = field(default_factory=dict)
 
     def watches(self, msg: MOOSMsg) -> bool:
         if self.sources and not any(wild_match(p, msg.source) for p in self.sources):
             return False
         return any(wild_match(n, msg.key) if is_pattern(n) else n == msg.key for n in self.names)
+
+    def note_db_start(self, mail: list[MOOSMsg]) -> None:
+        """The first DB_UPTIME fixes `start` at the DB's start; call it before the mail is shown.
+
+        (The DB's answer to ALL carries its variables stamped with their age, not their time: skipped.)"""
+        uptime = next((m for m in mail if m.key == "DB_UPTIME" and m.is_double() and m.id != SERVER_REQUEST_ID), None)
+        if uptime is not None and not self.db_started:
+            self.start, self.db_started = uptime.time - uptime.double, True
 
     def take(self, mail: list[MOOSMsg]) -> list[MOOSMsg]:
         """Keep the watched messages; return them (for history and events output)."""
@@ -207,6 +216,7 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
         print(line, file=out, flush=True)
 
     def on_mail(mail: list[MOOSMsg]) -> None:
+        scope.note_db_start(mail)
         for msg in mail:
             if msg.id == SERVER_REQUEST_ID:
                 if opts.history and not answered.is_set():
@@ -222,8 +232,9 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
                 changed.set()
 
     def on_connect() -> None:
-        if not scope.start:   # (T)ime counts from our start on the DB's clock (see uPokeDB), whatever our warp
+        if not scope.start:   # until DB_UPTIME says when the DB started: our start on the DB's clock
             scope.start = client.moos_time() + client.db_skew
+        client.register("DB_UPTIME")
         for name in opts.names:
             if is_pattern(name):
                 client.register_wildcard(name, "*")
