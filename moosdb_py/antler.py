@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from .formats import print_page
+from .formats import print_page, version_page
 from .mission import AntlerRun, Mission, parse_mission
 from .nsplug import parse_defines, preprocess
 from .source import MissionFileError, SourceLine
@@ -378,12 +378,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", "--terse", action="store_true", help="do not echo the children's output")
     p.add_argument("--example", action="store_true", help="print an example ANTLER block")
     p.add_argument("--interface", action="store_true", help="print what pAntler subscribes to and publishes")
+    p.add_argument("--version", action="version", version=version_page("pAntler"), help="print the release")
     return p
 
 
 def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, str]]:
     """MOOS's `--Name=value` global overrides, apart from pAntler's own options (anywhere on the line)."""
-    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help"}
+    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help", "version"}
     rest, overrides = [], {}
     for arg in argv:
         match = re.fullmatch(r"--([\w-]+)=(.*)", arg)

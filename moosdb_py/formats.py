@@ -34,6 +34,7 @@ import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
+from importlib import metadata
 
 
 class FormatError(ValueError):
@@ -202,6 +203,15 @@ def wild_match(pattern: str, text: str) -> bool:
 
 def is_pattern(text: str) -> bool:
     return "*" in text or "?" in text
+
+
+def version_page(name: str) -> str:
+    """What `APP --version` prints: the app's MOOS name and this package's release."""
+    try:
+        release = metadata.version("oilspill-moos")
+    except metadata.PackageNotFoundError:   # run from a source tree that was never installed
+        release = "unknown"
+    return f"{name} {release} (oilspill-moos: the MOOS-IvP app in Python)\n"
 
 
 def print_page(text: str) -> None:

@@ -381,6 +381,12 @@ PUBLICATIONS:
         """The MOOS command line, plus pShare's `-o=X->Y:host:port,...` and `-i=host:port,...` routes."""
         argv = sys.argv[1:] if argv is None else list(argv)
         switches = tuple(a for a in argv if a.partition("=")[0] in ("-o", "-i", "--output", "--input"))
+        bare = [a.partition("=")[0] for a in switches if not a.partition("=")[2].strip()]
+        if bare:   # `-i` alone would otherwise start a pShare that listens nowhere
+            example = "-i=localhost:9201" if bare[0] in ("-i", "--input") else "-o=X->Y:localhost:9200"
+            print(f"{cls.default_name}: {bare[0]} needs routes, e.g. {example} "
+                  "(for the interface page: --interface)", file=sys.stderr)
+            return 1
         return super().main([a for a in argv if a not in switches], command_line=switches)
 
     def __init__(self, *args, **kwargs):

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg
-from .formats import is_pattern, parse_bool, print_page, wild_match
+from .formats import is_pattern, parse_bool, print_page, version_page, wild_match
 from .mission import Mission, add_db_arguments, db_address, read_mission
 from .source import MissionFileError
 
@@ -136,8 +136,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-c", "--clean", action="store_true", help="ignore the var = lines of the uXMS block")
     add_db_arguments(p, "our time warp (default: mission or 1); (T)ime counts on the DB's clock whatever it is")
     p.add_argument("--alias", default="uXMS", help="MOOS name of this client (default uXMS)")
-    p.add_argument("--example", action="store_true", help="print an example uXMS config block")
-    p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("-e", "--example", action="store_true", help="print an example uXMS config block")
+    p.add_argument("-i", "--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("--version", action="version", version=version_page("uXMS"), help="print the release")
     return p
 
 
