@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import format_number
+from moosdb_py.formats import format_number, parse_pairs
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_bool, parse_float, read_params
 from oilspill_moos.geodesy import mission_grid
 
@@ -39,9 +39,7 @@ class NavState:
         names = ("x", "y", "heading", "speed", "depth")
         values: dict[str, float] = {}
         if parts and all("=" in p for p in parts):
-            for part in parts:
-                key, _, value = part.partition("=")
-                key = key.strip().lower()
+            for key, value in parse_pairs(text).items():
                 if key not in names:
                     raise ConfigValueError(what, f"unknown field {key!r} (expected {', '.join(names)})")
                 values[key] = parse_float(value, f"{what} {key}")
