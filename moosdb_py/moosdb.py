@@ -16,10 +16,9 @@ import sys
 from collections.abc import Iterable
 
 from . import codec
-from .app import print_page
 from .db_core import (ABORT, CLOSE, DEFAULT_CLIENT_TIMEOUT, DEFAULT_COMMUNITY, DEFAULT_MAX_QUEUE, REFRESH_PERIOD,
                       DBClient, DBVar, MOOSDBCore, Outgoing)
-from .formats import wild_match  # noqa: F401  (uXMS, pLogger and pShare still import it from here)
+from .formats import print_page
 from .message import moos_time
 
 log = logging.getLogger("moosdb")
