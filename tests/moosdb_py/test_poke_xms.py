@@ -178,10 +178,11 @@ def test_options_after_the_mission_file_and_pokes_on_the_dbs_clock(tmp_path):
         async def deploy_and_community_clock():
             watcher = MOOSClient("watcher", port=db.port, time_warp=10)   # on the community's clock
             watcher.register("DEPLOY")
+            watcher.register("DB_UPTIME")   # and until the DB has posted its uptime (uXMS's time origin)
             running = asyncio.create_task(watcher.run())
             try:
-                await async_wait_until(lambda: watcher.inbox, 10)
-                return watcher.inbox[0], watcher.moos_time()
+                await async_wait_until(lambda: {m.key for m in watcher.inbox} >= {"DEPLOY", "DB_UPTIME"}, 10)
+                return next(m for m in watcher.inbox if m.key == "DEPLOY"), watcher.moos_time()
             finally:
                 watcher.close()
                 await running
