@@ -112,13 +112,12 @@ class Params:
         self.by_name = {p.name.lower(): p for p in params}
 
     def __iter__(self):
+        """The declarations in order (moos-lint checks a block's lines against them)."""
         return iter(self.params)
 
     def __getitem__(self, name: str) -> Param:
+        """The declaration of `name`, any case."""
         return self.by_name[name.lower()]
-
-    def __or__(self, other: Params) -> Params:
-        return Params(*self.params, *other.params)
 
     @property
     def names(self) -> frozenset[str]:

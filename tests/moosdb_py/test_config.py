@@ -52,6 +52,12 @@ def test_undeclared_lines_are_warned_once_at_their_line_moos_app_keys_are_not(tm
     assert {"maxapptick", "apptick", "commstick"} <= MOOS_APP_KEYS
 
 
+def test_a_declaration_can_be_looked_up_and_listed():
+    assert Counter.parameters["STEP"].kind is float and Counter.parameters["Limit"].hi == 100
+    assert [p.name for p in Counter.parameters] == ["step", "enabled", "limit", "tag"]
+    assert Counter.parameters.names == {"step", "enabled", "limit", "tag"}
+
+
 def test_dict_configs_read_like_blocks():
     with pytest.raises(ConfigValueError, match="step: expected a number"):
         Counter.parameters.read({"step": "fast"})
