@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import ConfigLike, Param, Params, read_params
+from moosdb_py.formats import FormatError, parse_bool
 
 log = logging.getLogger("oilspill_moos.marine.marine_pid")
 
@@ -299,14 +300,18 @@ PUBLICATIONS:
                 self.times[key] = msg.time if msg.time > 0 else now
 
     def _set_override(self, word: str) -> None:
-        if word == "false":
+        try:
+            overridden = parse_bool(word)
+        except FormatError:
+            return   # neither true nor false: no change, as pMarinePID
+        if not overridden:
             if self.overridden:
                 self.values.clear()
                 self.times.clear()
                 self.engine.reset()
             self.overridden = False
             self.notify("PID_HAS_CONTROL", "true")
-        elif word == "true" and not self.overridden:
+        elif not self.overridden:
             self.overridden = True
             self.notify("PID_HAS_CONTROL", "false")
             self._post(0.0, 0.0, 0.0)

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import format_number
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_float, read_params
+from moosdb_py.formats import FormatError, format_number, parse_bool
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
@@ -172,13 +172,21 @@ class NodeReportBuilder:
         elif key == "LOAD_WARNING":
             self.load_warning = word
         elif key == "THRUST_MODE_REVERSE":
-            self.thrust_mode_reverse = word.lower() == "true"
+            self.thrust_mode_reverse = self._flag(word, self.thrust_mode_reverse)
         elif key == "NODE_GROUP_UPDATE":
             self.group = word
         elif key in ("NODE_COLOR_CHANGE", "PLATFORM_COLOR"):
             self.color = word
         elif key == "PNR_PAUSE":
-            self.paused = word.lower() == "true"
+            self.paused = self._flag(word, self.paused)
+
+    @staticmethod
+    def _flag(word: str, current: bool) -> bool:
+        """A MOOS boolean in mail; anything else leaves the setting as it was."""
+        try:
+            return parse_bool(word)
+        except FormatError:
+            return current
 
     # ---- output --------------------------------------------------------------------------
     def mode(self, now: float) -> str:

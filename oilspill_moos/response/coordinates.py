@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
+from moosdb_py.formats import FormatError, parse_bool
 from oilspill_moos.messages import coordinates_report
 
 
@@ -58,7 +59,10 @@ PUBLICATIONS:
             elif msg.key == "NAV_Y" and msg.is_double():
                 self.nav_y = msg.double
             elif msg.key == "STATION_KEEP":
-                keeping = str(msg.value).strip().lower() == "true"
+                try:
+                    keeping = parse_bool(str(msg.value))
+                except FormatError:
+                    keeping = False
                 self.pending |= keeping and not self.station_keeping
                 self.station_keeping = keeping
             elif msg.key == "REPORT_COORDINATES":

@@ -147,3 +147,16 @@ def test_format_number_round_trips_within_precision(value, decimals):
     text = format_number(value, decimals)
     assert abs(float(text) - value) <= 0.5 * 10 ** -decimals + 1e-9
     assert not (("." in text) and text.endswith("0")) and not text.endswith(".") and text != "-0"
+
+
+@pytest.mark.parametrize("word, paused", [("true", True), ("ON", True), ("1", True), ("false", False),
+                                          ("off", False), ("0", False), ("maybe", None)])
+def test_pause_and_reverse_mail_are_moos_booleans(word, paused):
+    """PNR_PAUSE and THRUST_MODE_REVERSE read booleans by the one rule (moosdb_py.formats); a word that is
+    no boolean leaves the setting alone, as the C++ app's setBooleanOnString does."""
+    for before in (False, True):
+        b = NodeReportBuilder("a", ReporterParams.from_config({"paused": str(before).lower()}))
+        b.thrust_mode_reverse = before
+        fed(b, 1.0, PNR_PAUSE=word, THRUST_MODE_REVERSE=word)
+        expected = before if paused is None else paused
+        assert (b.paused, b.thrust_mode_reverse) == (expected, expected)
