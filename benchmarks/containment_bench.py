@@ -40,7 +40,8 @@ from oilspill_moos.oilspill_mission import (
 )
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
+from oilspill_moos.messages import parse_boundary_line
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION
 from oilspill_moos.response.planner import containment_region, plan_arcs, plan_containment
 
 TRANSIT_SPEED = 2.5  # the mission's default TRANSIT_SPEED, m/s

@@ -18,12 +18,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import shapely
 from shapely.geometry import Polygon
 
 from oilspill_moos.demo import status_horizon
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.messages import parse_boundary_line
 from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
 from oilspill_moos.response.measures import (
     largest_revisit_gap,
@@ -35,7 +35,7 @@ from oilspill_moos.response.measures import (
 )
 from oilspill_moos.response.oil_fusion import ScenarioMap
 from oilspill_moos.response.oil_sensor import TruthSpill
-from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING, parse_boundary_line
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING
 from oilspill_moos.response.planner import containment_region
 
 SCENARIO = "strong_forcing-2214"   # in the shipped weights' test split: the forecaster never saw it
@@ -161,7 +161,7 @@ class ResponseRun:
         t = self.mission_s()
         spill = self.truth.at(t)
         fleet = patrolling(self.observer)
-        now = positions_at({n: self.observer.tracks[n] for n in fleet if n in self.observer.tracks},
+        now = positions_at({n: self.observer.tracks[n][-20:] for n in fleet if n in self.observer.tracks},
                            self.observer.client.moos_time(), stale=60.0)
         entry = {"mission_s": round(t, 1), "hour": round(self.truth.hour(t), 3), "patrolling": len(now),
                  "coverage": round(perimeter_coverage(spill, list(now.values()), self.reach), 4)}
@@ -236,16 +236,17 @@ async def run_cycle(run: ResponseRun, forecast: CycleForecast, pusher: BoundaryP
                                    f"{len(forecast.lines)} horizons")
     for line in forecast.lines:
         await pusher.push(line)
-    marks = {}
-    for phase in (STATION_KEEPING, STARTING_POSITION, OIL_PATH):
-        await wait_for(lambda: observer.phase_event(phase, index) is not None, timeout,
-                       f"cycle {forecast.number}: {phase}", mission,
-                       progress=lambda: observer.say("transit", f"{len(patrolling(observer))} of "
-                                                                f"{len(mission.fleet)} on their arcs"), every=15.0)
-        index = observer.phase_event(phase, index)
-        marks[phase] = observer.events[index]["moos_s"]
-        if phase == STARTING_POSITION:
-            await wait_for(lambda: len(observer.routes) >= len(mission.fleet), timeout, "routes", mission)
+    await wait_for(lambda: observer.phase_event(OIL_PATH, index) is not None, timeout,
+                   f"cycle {forecast.number}: every arc manned ({OIL_PATH})", mission,
+                   progress=lambda: observer.say("transit", f"{len(patrolling(observer))} of "
+                                                            f"{len(mission.fleet)} on their arcs"), every=15.0)
+    manned_index = observer.phase_event(OIL_PATH, index)
+    marks = {OIL_PATH: observer.events[manned_index]["moos_s"]}
+    earlier = pushed["moos_s"]
+    for phase in (STATION_KEEPING, STARTING_POSITION):   # a change missed while the observer reconnected:
+        found = observer.phase_event(phase, index)          # the mark before it stands in
+        marks[phase] = earlier = observer.events[found]["moos_s"] if found is not None and found < manned_index \
+            else earlier
     longest, bound = transit_bound(observer, marks[STARTING_POSITION], TOP_SPEED)
     horizon = status_horizon(observer.status)
     manned = marks[OIL_PATH] - pushed["moos_s"]

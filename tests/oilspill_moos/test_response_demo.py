@@ -9,7 +9,7 @@ from oilspill_moos.forecaster.train import WEIGHTS_DIR
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.oilspill_mission import ORIGIN, Observer
 from oilspill_moos.response.oil_sensor import TruthSpill
-from oilspill_moos.response.path_assign import parse_boundary_line
+from oilspill_moos.messages import parse_boundary_line
 from oilspill_moos.response_demo import BOUND_FACTOR, Truth, forecast_cycles, forecast_skill, load_truth, transit_bound
 
 SQUARE = Polygon([(0, 0), (1000, 0), (1000, 1000), (0, 1000)])
