@@ -1,7 +1,6 @@
 """Feature extraction on known shapes, scaling, windows, padding, and the real DWH composites."""
 import math
 from datetime import datetime, timedelta, timezone
-from pathlib import Path
 
 import numpy as np
 import pyproj
@@ -14,7 +13,8 @@ from oilspill_moos.forecaster.features import (
     latest_window, make_windows, observation_features, pad_by_trend, to_lonlat)
 from oilspill_moos.forecaster.readers import read_polygons
 
-DWH = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "dwh"
+from helpers import DWH, requires_shared
+
 RELEASE = datetime(2010, 4, 21, 3, 0, tzinfo=timezone.utc)
 CALM = Environment(wind_u=3.0, wind_v=-1.0, current_u=0.1, current_v=0.05, sea_temp_c=27.5)
 F = FEATURE_INDEX
@@ -174,6 +174,7 @@ def test_latest_window_pads_a_short_observation_history(hourly):
         latest_window(times[[0, 2, 1]], x[:3])
 
 
+@requires_shared("data/dwh")
 def test_real_dwh_composites_feature_check():
     """Areas of the largest NOAA/NESDIS polygon and of all of them, as the data README measured."""
     rows = {}
