@@ -61,6 +61,8 @@ def _vertex(item: str) -> tuple[float, float] | None:
     try:
         float(parts[0])
     except ValueError:
+        if len(parts) == 1:   # `oops`: neither a vertex nor a `key,value` property (MOOS-IvP rejects the list)
+            raise GeometryError(f"vertex '{item}' must be x,y or x,y,z") from None
         return None  # `label,foo` and friends are properties, not vertices
     if len(parts) not in (2, 3):
         raise GeometryError(f"vertex '{item}' must be x,y or x,y,z")

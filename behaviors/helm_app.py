@@ -14,14 +14,17 @@ from .helm import Helm
 from .logic import as_number
 
 EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
-# Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
-# anything else is a config warning that puts the helm in MALCONFIG, as the C++ helm does.
+# Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included
+# (MaxAppTick), and `pmgen`, which the C++ helm accepts (issue 15); anything else is a config warning
+# that puts the helm in MALCONFIG, as the C++ helm does.
 KNOWN_PARAMS = frozenset({
-    "apptick", "commstick", "maxappticks", "iteratemode", "debug", "app_logging",
+    "apptick", "commstick", "maxapptick", "iteratemode", "debug", "app_logging",
     "behaviors", "domain", "active_start", "start_engaged", "start_in_drive", "allow_park", "park_on_allstop",
     "helm_prefix", "ok_skew", "goals_mandatory", "nav_grace", "hold_on_apps", "verbose",
-    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs"})
+    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs", "pmgen"})
 NOT_SUPPORTED = frozenset({"standby", "other_override_var"})   # real pHelmIvP keys this helm lacks
+# Keys the C++ helm does not read but only warns about, driving all the same: so does this one.
+WARNED_ONLY = frozenset({"term_report_interval"})
 
 
 def parameter_warnings(config) -> list[MissionFileError]:
@@ -30,9 +33,15 @@ def parameter_warnings(config) -> list[MissionFileError]:
     for entry in config.entries:
         if entry.key.lower() in NOT_SUPPORTED:
             out.append(entry.source.error(f"pHelmIvP parameter '{entry.key}' is not supported by this helm"))
-        elif entry.key.lower() not in KNOWN_PARAMS:
+        elif entry.key.lower() not in KNOWN_PARAMS | WARNED_ONLY:
             out.append(entry.source.error(f"unknown pHelmIvP parameter '{entry.key}'"))
     return out
+
+
+def ignored_parameters(config) -> list[MissionFileError]:
+    """Each line of a pHelmIvP block the helm ignores with a warning but drives all the same."""
+    return [entry.source.error(f"pHelmIvP ignores parameter '{entry.key}'")
+            for entry in config.entries if entry.key.lower() in WARNED_ONLY]
 
 
 def _bool(value: str, key: str) -> bool:
@@ -129,6 +138,8 @@ PUBLICATIONS
             self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
         for warning in self.helm.config_warnings:
             print(f"{self.name}: {warning} -> MALCONFIG, the helm will not drive", file=sys.stderr)
+        for ignored in ignored_parameters(self.config):
+            print(f"{self.name}: {ignored}", file=sys.stderr)
         self.warned = len(self.helm.run_warnings)
         self.bhv_paths = [f.path for f in files]
         self.pending_startup = self.helm.startup(self.moos_time())

@@ -1,10 +1,15 @@
+"""moos-lint: every problem of a file at its line, with the severity of the app that reads the line."""
 import os
+import re
 import subprocess
 import sys
+from importlib import metadata
 
 import pytest
 
+from behaviors.bhv_file import read_bhv
 from behaviors.lint import main
+from moosdb_py.source import MissionFileError
 
 
 def test_corpus_passes_from_each_folder(corpus, monkeypatch, capsys):
@@ -12,7 +17,19 @@ def test_corpus_passes_from_each_folder(corpus, monkeypatch, capsys):
     for f in files:
         monkeypatch.chdir(f.parent)
         assert main([f.name]) == 0, f
-    assert capsys.readouterr().out == ""
+    out, err = capsys.readouterr()
+    assert out == ""
+    summaries = [line for line in err.splitlines() if "warning:" not in line]
+    assert len(summaries) == len(files) and all(re.fullmatch(r"1 file OK(, \d+ warnings?)?", s) for s in summaries)
+
+
+def test_the_repos_own_missions_pass_as_the_readme_runs_it(monkeypatch, capsys, missions):
+    """The README's command, from the top of a clone: no errors and no warnings in missions/."""
+    monkeypatch.chdir(missions.parent)
+    files = sorted(str(p.relative_to(missions.parent)) for p in missions.glob("*/*") if p.suffix in (".moos", ".bhv"))
+    assert main(files) == 0
+    out, err = capsys.readouterr()
+    assert (out, err) == ("", f"{len(files)} files OK\n")
 
 
 def test_problems_are_file_line_messages(tmp_path, capsys):
@@ -22,12 +39,14 @@ def test_problems_are_file_line_messages(tmp_path, capsys):
     moos = tmp_path / "bad.moos"
     moos.write_text("ServerPort = 90x\nProcessConfig = pHelmIvP\n{\n  domain = speed:0:4\n}\n")
     assert main([str(bhv), str(moos)]) == 1
-    out = capsys.readouterr().out.splitlines()
+    out, err = capsys.readouterr()
+    out = out.splitlines()
     assert out[0] == f"{bhv}:4: BHV_Waypoint 'w': speed must be a number >= 0, got 'fast'"
     assert out[1].startswith(f"{bhv}:5: ")
     assert out[2].startswith(f"{moos}:1: ")
     assert out[3].startswith(f"{moos}:4: domain 'speed:0:4'")
     assert len(out) == 4
+    assert err == "2 files: 4 errors, 0 warnings\n"
 
 
 def test_defines_reach_nsplug(tmp_path, capsys):
@@ -52,5 +71,118 @@ def test_mission_warnings_go_to_stderr_without_failing(tmp_path, capsys):
     out, err = capsys.readouterr()
     assert out == ""
     lines = err.splitlines()
-    assert len(lines) == 2 and lines[0] == f"{moos}:2: warning: ignored line outside any block: stray words"
+    assert len(lines) == 3 and lines[2] == "1 file OK, 2 warnings" and lines[0] == f"{moos}:2: warning: ignored line outside any block: stray words"
     assert lines[1].startswith(f"{moos}:6: warning: second block for a is ignored")
+
+
+def test_every_bad_line_is_reported_not_only_the_first(tmp_path, capsys):
+    bhv = tmp_path / "many.bhv"
+    bhv.write_text("initialize DEPLOY = false\n"
+                   "stray words\n"                                         # 2: outside any block
+                   "Behavior = BHV_Waypoint\n{\n  name = a\n"
+                   "  condition = DEPLOY = = true\n"                       # 6: bad condition
+                   "  speed = fast\n"                                      # 7
+                   "  points = 60,-40 : 60,-160 : oops\n"                  # 8: not a vertex
+                   "}\n"
+                   "Behavior = BHV_StationKeep\n{\n  name = b\n"
+                   "  pwt = -3\n"                                          # 13
+                   "  station_pt = 1,x\n"                                  # 14
+                   "}\n"
+                   "initialize DEPLOY\n")                                  # 16: no value
+    assert main([str(bhv)]) == 1
+    out, err = capsys.readouterr()
+    out = out.splitlines()
+    assert [int(line.split(":")[1]) for line in out] == [2, 6, 7, 8, 13, 14, 16]
+    assert "vertex 'oops' must be x,y" in out[3]
+    assert err == "1 file: 7 errors, 0 warnings\n"
+
+
+def test_unclosed_block_is_named_at_the_helms_line(tmp_path, capsys):
+    bhv = tmp_path / "open.bhv"
+    bhv.write_text("initialize DEPLOY = false\n\nBehavior = BHV_Waypoint\n{\n  name = w\n  points = 0,0 : 10,0\n")
+    with pytest.raises(MissionFileError) as helm:
+        read_bhv(bhv)
+    assert helm.value.line == 6
+    assert main([str(bhv)]) == 1
+    assert capsys.readouterr().out.splitlines()[0] == str(helm.value)
+
+
+def test_run_lines_pantler_cannot_launch_are_warnings(tmp_path, capsys, monkeypatch):
+    """pAntler launches the rest and says which it cannot: a warning each, at its line; exit 0."""
+    (tmp_path / "bin").mkdir()
+    tool = tmp_path / "bin" / "iCppOnly"        # a C++ app on PATH is launchable
+    tool.write_text("#!/bin/sh\n")
+    tool.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{tmp_path / 'bin'}{os.pathsep}{os.environ['PATH']}")
+    moos = tmp_path / "runs.moos"
+    moos.write_text("ServerPort = 9000\nProcessConfig = ANTLER\n{\n"
+                    "  Run = MOOSDB @ NewConsole = false\n"
+                    "  Run = pHelmIvP @ NewConsole = false ~ pHelmIvP_2\n"  # 5: ours, aliased
+                    "  Run = iCppOnly @ NewConsole = false\n"              # 6: on PATH
+                    "  Run = pLogger\n"                                    # 7: no options at all: fine
+                    "  Run = pHelmIVP @ NewConsole = false\n"              # 8: no such app
+                    "  Run = pNodeReporter NewConsole = false\n"           # 9: no '@'
+                    "  Run = pMarinePID ~ pid2\n}\n")                     # 10: no '@' before '~'
+    assert main([str(moos)]) == 0
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.splitlines() == [
+        f"{moos}:8: warning: cannot launch pHelmIVP: not a project app and not found on PATH",
+        f"{moos}:9: warning: Run line has no '@': pAntler takes all of 'pNodeReporterNewConsole=false' as the "
+        "program name (write Run = <app> @ NewConsole = false [~ MOOSName])",
+        f"{moos}:10: warning: Run line has no '@': pAntler takes all of 'pMarinePID~pid2' as the program name "
+        "(write Run = <app> @ NewConsole = false [~ MOOSName])",
+        "1 file OK, 3 warnings"]
+
+
+HELM_MISSION = ("ServerPort = 9000\nLatOrigin = 43.8\nLongOrigin = -70.3\nProcessConfig = pHelmIvP\n{{\n"
+                "  behaviors = t.bhv\n  domain = course:0:359:360\n  domain = speed:0:4:41\n  {line}\n}}\n")
+
+
+@pytest.mark.parametrize("line, helm_status, severity", [
+    ("MaxAppTick = 10", "PARK", None),                   # every MOOSApp reads it
+    ("pmgen = true", "PARK", None),                      # the C++ helm accepts it
+    ("term_report_interval = 0.8", "PARK", "warning"),   # the C++ helm warns and drives
+    ("colour = red", "MALCONFIG", "error"),              # an unknown key: the helm never drives
+])
+def test_helm_parameters_have_the_helms_own_severity(tmp_path, capsys, line, helm_status, severity):
+    from behaviors.helm_app import HelmIvP
+    (tmp_path / "t.bhv").write_text("Behavior = BHV_Waypoint\n{\n  name = go\n  points = 0,100\n  speed = 2\n}\n")
+    moos = tmp_path / "t.moos"
+    moos.write_text(HELM_MISSION.format(line=line))
+    app = HelmIvP(moos)
+    app.on_startup()
+    assert app.helm.status == helm_status
+    capsys.readouterr()
+    assert main([str(moos)]) == (1 if severity == "error" else 0)
+    out, err = capsys.readouterr()
+    key = line.split()[0]
+    if severity == "error":
+        assert out.splitlines()[0] == f"{moos}:9: unknown pHelmIvP parameter '{key}'"
+    elif severity == "warning":
+        assert (out, err) == ("", f"{moos}:9: warning: pHelmIvP ignores parameter '{key}'\n1 file OK, 1 warning\n")
+    else:
+        assert (out, err) == ("", "1 file OK\n")
+
+
+def test_lawnmower_points_are_accepted_as_the_waypoint_behaviour_accepts_them(tmp_path, capsys):
+    bhv = tmp_path / "survey.bhv"
+    bhv.write_text("Behavior = BHV_Waypoint\n{\n  name = mow\n"
+                   "  points = format=lawnmower, x=0, y=-100, width=200, height=100, swath=25, rows=ew\n}\n")
+    assert main([str(bhv)]) == 0
+    assert capsys.readouterr() == ("", "1 file OK\n")
+
+
+def test_example_interface_and_version(capsys):
+    assert main(["--example"]) == 0 and main(["-e"]) == 0
+    example = capsys.readouterr().out
+    assert "$ moos-lint alpha.moos alpha.bhv\n2 files OK" in example
+    assert main(["--interface"]) == 0 and main(["-i"]) == 0
+    assert "is not a MOOS app" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out == f"moos-lint {metadata.version('oilspill-moos')}\n"
+    with pytest.raises(SystemExit) as done:
+        main([])
+    assert done.value.code == 2 and "at least one FILE" in capsys.readouterr().err
