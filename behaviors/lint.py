@@ -17,7 +17,7 @@ from importlib import metadata
 from pathlib import Path
 
 from moosdb_py.antler import plan
-from moosdb_py.app import print_page
+from moosdb_py.formats import print_page
 from moosdb_py.mission import Mission, read_mission
 from moosdb_py.nsplug import parse_defines, preprocess
 from moosdb_py.source import MissionFileError, SourceLine
