@@ -11,12 +11,13 @@ files (`N files OK`); the exit status is 1 when any file has an error, else 0.
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from moosdb_py.antler import plan
+from moosdb_py.antler import APP_GROUP, DB_NAMES, plan
 from moosdb_py.formats import print_page
 from moosdb_py.mission import Mission, read_mission
 from moosdb_py.nsplug import parse_defines, preprocess
@@ -126,8 +127,11 @@ def check_antler(mission: Mission, found: Findings) -> None:
             found.warning(entry.source.error(f"Run line has no '@': pAntler takes all of '{value}' as the program "
                                              "name (write Run = <app> @ NewConsole = false [~ MOOSName])"))
     _, problems = plan(mission, mission.path)
+    ours = [*DB_NAMES, *(e.name for e in metadata.entry_points(group=APP_GROUP))]
     for problem in problems:
-        found.warning(problem)
+        run = next(r for r in mission.antler.runs if problem.startswith(f"{r.source}: "))
+        close = difflib.get_close_matches(run.exe, ours, n=1, cutoff=0.8)
+        found.warning(problem + (f" (did you mean {close[0]}?)" if close else ""))
 
 
 def lint_moos(path: Path, defines: dict, found: Findings) -> None:
@@ -195,7 +199,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="an nsplug macro value (repeatable)")
     parser.add_argument("-e", "--example", action="store_true", help="print an example session")
     parser.add_argument("-i", "--interface", action="store_true", help="print what it reads and writes")
-    parser.add_argument("-v", "--version", action="version", version=f"moos-lint {_version()}")
+    parser.add_argument("-v", "--version", action="version", version=f"moos-lint {_version()} (oilspill-moos)")
     return parser
 
 

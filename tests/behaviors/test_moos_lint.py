@@ -127,7 +127,7 @@ def test_run_lines_pantler_cannot_launch_are_warnings(tmp_path, capsys, monkeypa
     out, err = capsys.readouterr()
     assert out == ""
     assert err.splitlines() == [
-        f"{moos}:8: warning: cannot launch pHelmIVP: not a project app and not found on PATH",
+        f"{moos}:8: warning: cannot launch pHelmIVP: not a project app and not found on PATH (did you mean pHelmIvP?)",
         f"{moos}:9: warning: Run line has no '@': pAntler takes all of 'pNodeReporterNewConsole=false' as the "
         "program name (write Run = <app> @ NewConsole = false [~ MOOSName])",
         f"{moos}:10: warning: Run line has no '@': pAntler takes all of 'pMarinePID~pid2' as the program name "
@@ -182,7 +182,7 @@ def test_example_interface_and_version(capsys):
     with pytest.raises(SystemExit) as done:
         main(["--version"])
     assert done.value.code == 0
-    assert capsys.readouterr().out == f"moos-lint {metadata.version('oilspill-moos')}\n"
+    assert capsys.readouterr().out == f"moos-lint {metadata.version('oilspill-moos')} (oilspill-moos)\n"
     with pytest.raises(SystemExit) as done:
         main([])
     assert done.value.code == 2 and "at least one FILE" in capsys.readouterr().err
