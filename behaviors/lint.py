@@ -19,7 +19,7 @@ from pathlib import Path
 
 from moosdb_py.antler import APP_GROUP, DB_NAMES, plan
 from moosdb_py.formats import print_page
-from moosdb_py.mission import Mission, read_mission
+from moosdb_py.mission import Mission, parse_mission
 from moosdb_py.nsplug import parse_defines, preprocess
 from moosdb_py.source import MissionFileError, SourceLine
 
@@ -134,8 +134,25 @@ def check_antler(mission: Mission, found: Findings) -> None:
         found.warning(problem + (f" (did you mean {close[0]}?)" if close else ""))
 
 
+def read_past_bad_entries(path: Path, defines: dict, found: Findings) -> Mission:
+    """The mission as MOOS reads it; a rejected `key = value` line (a bad Run line, ...) is reported
+    and read again without it, so the lines after it are checked too. A structural error (a block
+    never closed, a header without `{`) ends the file: what follows is in no known block."""
+    lines = preprocess(path, defines)
+    while True:
+        try:
+            return parse_mission(path, lines)
+        except MissionFileError as exc:
+            found.error(exc)
+            at = next((i for i, s in enumerate(lines) if (s.file, s.line) == (exc.file, exc.line)), None)
+            text = lines[at].text.strip() if at is not None else ""
+            if at is None or "=" not in text or text.replace(" ", "").lower().startswith("processconfig="):
+                raise
+            lines = [*lines[:at], SourceLine("", exc.file, exc.line), *lines[at + 1:]]
+
+
 def lint_moos(path: Path, defines: dict, found: Findings) -> None:
-    mission = read_mission(path, defines)
+    mission = read_past_bad_entries(path, defines, found)
     for warning in mission.warnings:
         found.warning(warning)
     for attr, name in GLOBALS.items():
@@ -169,7 +186,7 @@ def lint(path: Path, defines: dict) -> Findings:
         else:
             lint_moos(path, defines, found)
     except MissionFileError as exc:
-        found.error(exc)
+        found.error(exc)          # already there when read_past_bad_entries gave up on it
     found.errors.sort(key=_line_order)
     found.warnings.sort(key=_line_order)
     return found

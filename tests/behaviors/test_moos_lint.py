@@ -97,6 +97,20 @@ def test_every_bad_line_is_reported_not_only_the_first(tmp_path, capsys):
     assert err == "1 file: 7 errors, 0 warnings\n"
 
 
+def test_every_bad_moos_line_is_reported_not_only_the_first(tmp_path, capsys):
+    moos = tmp_path / "many.moos"
+    moos.write_text("ServerPort = 90x\nLatOrigin = 43\nLongOrigin = -70\nProcessConfig = ANTLER\n{\n"
+                    "  MSBetweenLaunches = fast\n"                          # 6
+                    "  Run = MOOSDB @ NewConsole = false\n"
+                    "  Run = pHelmIvP @ NewConsole\n"                       # 8: option not key=value
+                    "  Run = pLogger @ NewConsole = false ~\n"              # 9: no MOOS name after '~'
+                    "}\nProcessConfig = pHelmIvP\n{\n  colour = red\n"    # 13
+                    "  domain = speed:0:4\n}\n")                           # 14
+    assert main([str(moos)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert [int(line.split(":")[1]) for line in out] == [1, 6, 8, 9, 13, 14]
+
+
 def test_unclosed_block_is_named_at_the_helms_line(tmp_path, capsys):
     bhv = tmp_path / "open.bhv"
     bhv.write_text("initialize DEPLOY = false\n\nBehavior = BHV_Waypoint\n{\n  name = w\n  points = 0,0 : 10,0\n")
