@@ -27,7 +27,7 @@ import shapely
 from shapely.geometry import Polygon
 
 from moosdb_py.client import MOOSClient
-from oilspill_moos.demo import ORIGIN, Observer, OilspillMission, wait_for
+from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
 from oilspill_moos.forecaster.assimilate import ingest, read_feedback
 from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.features import to_plane

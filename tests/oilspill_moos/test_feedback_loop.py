@@ -15,7 +15,7 @@ import threading
 import pytest
 from helpers import wait_until
 
-from oilspill_moos.demo import ORIGIN, Observer, OilspillMission
+from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission
 from oilspill_moos.feedback_demo import (MAP_SCALE, SCENARIO, STANDOFF, FusionWatch, boundary_line, feedback_defines,
                                          iou, mission_polygon, truth_at)
 from oilspill_moos.forecaster import operational
