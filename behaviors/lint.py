@@ -26,8 +26,8 @@ from moosdb_py.source import MissionFileError, SourceLine
 from .behavior import InfoBuffer
 from .bhv_file import BehaviorSpec, parse_bhv
 from .domain import IvPDomain, parse_domain_line
-from .helm import BEHAVIOR_TYPES
-from .helm_app import ignored_parameters, parameter_warnings
+from .helm_app import ignored_parameter_warnings, parameter_warnings
+from .registry import PluginError, behavior_class
 
 LINT_DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:10:101"),
                               parse_domain_line("depth:0:1000:1001:optional")])
@@ -39,10 +39,10 @@ $ cd missions/s1_alpha
 $ moos-lint alpha.moos alpha.bhv
 2 files OK
 $ moos-lint broken.moos broken.bhv
-broken.bhv:6: BHV_Waypoint 'waypt_survey': vertex 'oops' must be x,y or x,y,z
+broken.bhv:6: BHV_Waypoint 'waypt_survey': vertex 3 'oops' is not x,y
 broken.bhv:9: BHV_Waypoint 'waypt_survey': speed must be a number >= 0, got 'fast'
 broken.moos:21: warning: Run line has no '@': pAntler takes all of 'pHelmIvPNewConsole=false' as the program name (write Run = <app> @ NewConsole = false)
-broken.moos:40: warning: pHelmIvP ignores parameter 'term_report_interval'
+broken.moos:40: warning: pHelmIvP ignores 'term_report_interval' (the C++ helm only warns about it)
 2 files: 2 errors, 2 warnings
 $ moos-lint -D VNAME=abe -D START_POS=0,0 meta_vehicle.moos meta_vehicle.bhv   # templates, with nsplug values
 """
@@ -85,7 +85,11 @@ def _unresolved(text: str) -> bool:
 
 def check_behavior_params(spec: BehaviorSpec, found: Findings) -> None:
     """Apply each line of a behaviour as the helm would, collecting every rejected one."""
-    cls = BEHAVIOR_TYPES.get(spec.type.lower())
+    try:
+        cls = behavior_class(spec.type)      # built-in or a plug-in's (the behaviors.bhv entry points)
+    except PluginError as exc:
+        found.error(MissionFileError(spec.file, spec.line, str(exc)))
+        return
     if cls is None:
         found.warning(MissionFileError(spec.file, spec.line, f"{spec.type} '{spec.name}': a behaviour type this "
                                        "helm does not implement (its pHelmIvP refuses the file); general "
@@ -168,7 +172,7 @@ def lint_moos(path: Path, defines: dict, found: Findings) -> None:
         return
     for problem in parameter_warnings(helm):     # the helm would sit in MALCONFIG
         found.error(problem)
-    for ignored in ignored_parameters(helm):
+    for ignored in ignored_parameter_warnings(helm):
         found.warning(ignored)
     for entry in (e for e in helm.entries if e.key.lower() == "domain" and not _unresolved(e.value)):
         try:

@@ -93,7 +93,7 @@ def test_every_bad_line_is_reported_not_only_the_first(tmp_path, capsys):
     out, err = capsys.readouterr()
     out = out.splitlines()
     assert [int(line.split(":")[1]) for line in out] == [2, 6, 7, 8, 13, 14, 16]
-    assert "vertex 'oops' must be x,y" in out[3]
+    assert "vertex 3 'oops' is not x,y" in out[3]
     assert err == "1 file: 7 errors, 0 warnings\n"
 
 
@@ -155,9 +155,10 @@ HELM_MISSION = ("ServerPort = 9000\nLatOrigin = 43.8\nLongOrigin = -70.3\nProces
 
 @pytest.mark.parametrize("line, helm_status, severity", [
     ("MaxAppTick = 10", "PARK", None),                   # every MOOSApp reads it
-    ("pmgen = true", "PARK", None),                      # the C++ helm accepts it
+    ("pmgen = length=4, beam=1.5", "PARK", None),        # the C++ helm's platform model: accepted
     ("term_report_interval = 0.8", "PARK", "warning"),   # the C++ helm warns and drives
     ("colour = red", "MALCONFIG", "error"),              # an unknown key: the helm never drives
+    ("pmgen = oops", "MALCONFIG", "error"),              # not a key=value list
 ])
 def test_helm_parameters_have_the_helms_own_severity(tmp_path, capsys, line, helm_status, severity):
     from behaviors.helm_app import HelmIvP
@@ -171,10 +172,11 @@ def test_helm_parameters_have_the_helms_own_severity(tmp_path, capsys, line, hel
     assert main([str(moos)]) == (1 if severity == "error" else 0)
     out, err = capsys.readouterr()
     key = line.split()[0]
-    if severity == "error":
-        assert out.splitlines()[0] == f"{moos}:9: unknown pHelmIvP parameter '{key}'"
+    if severity == "error":     # the very line the helm printed when it went MALCONFIG
+        assert out.splitlines() == app.helm.config_warnings and out.startswith(f"{moos}:9: ")
     elif severity == "warning":
-        assert (out, err) == ("", f"{moos}:9: warning: pHelmIvP ignores parameter '{key}'\n1 file OK, 1 warning\n")
+        assert (out, err) == ("", f"{moos}:9: warning: pHelmIvP ignores '{key}' (the C++ helm only warns about it)\n"
+                                  "1 file OK, 1 warning\n")
     else:
         assert (out, err) == ("", "1 file OK\n")
 

@@ -4,7 +4,7 @@ import math
 
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from oilspill_moos.geodesy import LocalGrid
@@ -353,6 +353,9 @@ events = st.lists(st.tuples(st.sampled_from(["coords", "report", "reached", "tic
 
 @settings(max_examples=40, deadline=None)
 @given(events)
+# Found by the search: ben dropped while abe, never heard yet, could not take over; abe's first report must.
+@example([("coords", "ben", 0.0, 0.0)] + [("reached", "abe", 0.0, step) for step in (3.0, 5.0, 8.0, 14.0, 1.0)]
+         + [("coords", "abe", 0.0, 0.0)])
 def test_phase_machine_invariants_under_any_mail_order(sequence):
     c = Coordinator(Settings(fleet=("abe", "ben"), standoff=20, coordinate_timeout=20, node_timeout=30,
                              arrival_timeout=200, min_replan_interval=0))
