@@ -181,12 +181,28 @@ def test_helm_parameters_have_the_helms_own_severity(tmp_path, capsys, line, hel
         assert (out, err) == ("", "1 file OK\n")
 
 
-def test_lawnmower_points_are_accepted_as_the_waypoint_behaviour_accepts_them(tmp_path, capsys):
-    bhv = tmp_path / "survey.bhv"
-    bhv.write_text("Behavior = BHV_Waypoint\n{\n  name = mow\n"
-                   "  points = format=lawnmower, x=0, y=-100, width=200, height=100, swath=25, rows=ew\n}\n")
+@pytest.mark.parametrize("block", [
+    "BHV_Waypoint\n{\n  name = mow\n  points = format=lawnmower, x=0, y=-100, width=200, height=100, swath=25, rows=ew\n",
+    "BHV_Waypoint\n{\n  name = bow\n  points = format=bowtie, x=0, y=-100, height=50, wid1=20, wid2=40, wid3=10\n",
+    "BHV_ConstantHeading\n{\n  name = ch\n  heading = 90\n  complete_thresh = 10\n  heading_mismatch_var = HDG_DIFF\n",
+    "BHV_ConstantDepth\n{\n  name = cd\n  depth = 10\n  depth_mismatch_var = DEPTH_DIFF\n",
+])
+def test_what_the_cpp_behaviours_accept_passes_as_our_behaviours_accept_it(tmp_path, capsys, block):
+    """Issue 15's rejected-but-valid lines: judged by the behaviour itself, so they pass once it takes them."""
+    bhv = tmp_path / "ok.bhv"
+    bhv.write_text(f"Behavior = {block}}}\n")
     assert main([str(bhv)]) == 0
     assert capsys.readouterr() == ("", "1 file OK\n")
+
+
+def test_a_parameter_the_behaviour_rejects_is_an_error(tmp_path, capsys):
+    bhv = tmp_path / "bad.bhv"
+    bhv.write_text("Behavior = BHV_ConstantHeading\n{\n  name = ch\n  heading = 90\n  complete_thresh = wide\n"
+                   "  colour = red\n}\n")
+    assert main([str(bhv)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[1] for line in out] == ["5", "6"]
+    assert out[0].startswith(f"{bhv}:5: BHV_ConstantHeading 'ch': ") and "'colour'" in out[1]
 
 
 def test_example_interface_and_version(capsys):
