@@ -18,7 +18,7 @@ from importlib import metadata
 from pathlib import Path
 
 from moosdb_py.antler import APP_GROUP, DB_NAMES, plan
-from moosdb_py.formats import print_page
+from moosdb_py.formats import print_page, version_page
 from moosdb_py.mission import Mission, parse_mission
 from moosdb_py.nsplug import parse_defines, preprocess
 from moosdb_py.source import MissionFileError, SourceLine
@@ -206,13 +206,6 @@ def _count(n: int, what: str) -> str:
     return f"{n} {what}{'' if n == 1 else 's'}"
 
 
-def _version() -> str:
-    try:
-        return metadata.version("oilspill-moos")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="moos-lint", description=__doc__.split("\n\n")[0])
     parser.add_argument("files", nargs="*", type=Path, metavar="FILE", help=".moos or .bhv files")
@@ -220,15 +213,15 @@ def _parser() -> argparse.ArgumentParser:
                         help="an nsplug macro value (repeatable)")
     parser.add_argument("-e", "--example", action="store_true", help="print an example session")
     parser.add_argument("-i", "--interface", action="store_true", help="print what it reads and writes")
-    parser.add_argument("-v", "--version", action="version", version=f"moos-lint {_version()} (oilspill-moos)")
+    parser.add_argument("-v", "--version", action="store_true", help="print the version")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
-    if args.example or args.interface:
-        print_page(EXAMPLE if args.example else INTERFACE)
+    if args.example or args.interface or args.version:
+        print_page(EXAMPLE if args.example else INTERFACE if args.interface else version_page("moos-lint"))
         return 0
     if not args.files:
         parser.error("at least one FILE is required")

@@ -9,6 +9,7 @@ import pytest
 
 from behaviors.bhv_file import read_bhv
 from behaviors.lint import main
+from moosdb_py.formats import version_page
 from moosdb_py.source import MissionFileError
 
 
@@ -211,10 +212,9 @@ def test_example_interface_and_version(capsys):
     assert "$ moos-lint alpha.moos alpha.bhv\n2 files OK" in example
     assert main(["--interface"]) == 0 and main(["-i"]) == 0
     assert "is not a MOOS app" in capsys.readouterr().out
-    with pytest.raises(SystemExit) as done:
-        main(["--version"])
-    assert done.value.code == 0
-    assert capsys.readouterr().out == f"moos-lint {metadata.version('oilspill-moos')} (oilspill-moos)\n"
+    assert main(["--version"]) == 0 and main(["-v"]) == 0
+    assert capsys.readouterr().out == 2 * version_page("moos-lint")
+    assert version_page("moos-lint").startswith(f"moos-lint {metadata.version('oilspill-moos')} (oilspill-moos")
     with pytest.raises(SystemExit) as done:
         main([])
     assert done.value.code == 2 and "at least one FILE" in capsys.readouterr().err
