@@ -360,7 +360,8 @@ def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, 
            "## By release type (given forcing)", "", *release_table(given, seed), "",
            "## Calibration of `uncertainty_m`", "",
            "Share of test cases whose true centroid lies within the nominal radius "
-           "(r = sqrt(-2 ln(1 - p)) x `uncertainty_m`; 2.448 x at 95 %). Calibrated on the validation split "
+           "(r = sqrt(-2 ln(1 - p)) x `uncertainty_m`; 2.448 x at 95 %). Calibrated per horizon on the validation "
+           "split for the learned kinds, on training + validation cases for the prior and the baselines "
            f"({calibration.get('calibration_cases', '?')} cases); the target at 95 % is 90-98 %.", "",
            *reliability_table(given), ""]
     if example:
