@@ -10,11 +10,15 @@ import time as _time
 from dataclasses import dataclass
 from typing import Union
 
+from moosdb_py.formats import FormatError, parse_pairs
+
 from .domain import IvPDomain
 from .geometry import fmt_num
 from .flags import FLAG_KINDS, FlagError, FlagSpec, expand_macros, parse_flag
 from .ivp_function import IvPFunction
 from .logic import ConditionError, as_number, parse_behavior_condition
+from .parameters import (BOOLEAN, NON_NEGATIVE, TEXT, ParamSpec, Parser, accepted, attr, collect, parse_number,
+                         unique_specs)
 
 Value = Union[float, str]
 # Flags the helm posts every time (not deduplicated); spec ivp-helm.md §1.3.
@@ -56,6 +60,7 @@ class InfoBuffer:
         self.deltas.clear()
 
 
+
 @dataclass
 class Post:
     var: str
@@ -64,28 +69,15 @@ class Post:
     key: str = ""  # sub-key for deduplication, so two posts of one variable do not shadow each other
 
 
-def parse_bool(value: str, what: str) -> bool:
-    low = value.strip().lower()
-    if low not in ("true", "false"):
-        raise ValueError(f"{what} must be true or false, got '{value}'")
-    return low == "true"
-
-
-def parse_number(value: str, what: str, minimum: float | None = None) -> float:
-    number = as_number(value)
-    if number is None or (minimum is not None and number < minimum):
-        bound = f" >= {minimum:g}" if minimum is not None else ""
-        raise ValueError(f"{what} must be a number{bound}, got '{value}'")
-    return number
-
-
 def apply_visual_hints(hints: dict[str, str], value: str) -> None:
     """`visual_hints = vertex_color=red, edge_size=2`: lines accumulate; keys this behaviour does not
     draw with are ignored, as MOOS-IvP does; a size must be a number >= 0."""
-    for item in value.split(","):
-        key, sep, val = (part.strip() for part in item.partition("="))
-        key = key.lower()
-        if not sep or key not in hints:
+    try:
+        pairs = parse_pairs(value)
+    except FormatError as exc:
+        raise ValueError(f"visual_hints: {exc}") from None
+    for key, val in pairs.items():
+        if key not in hints:
             continue
         if key.endswith("size"):
             val = fmt_num(parse_number(val, f"visual_hints {key}", 0))
@@ -116,27 +108,134 @@ class Duration:
     def reset(self, now: float) -> None:
         self.started, self.running_time, self.last_tick = now, 0.0, now
 
+    def reset_requested(self, info: InfoBuffer) -> bool:
+        """`duration_reset = VAR=value` and VAR was posted that value this iteration."""
+        return bool(self.reset_var) and any(str(v) == self.reset_value or as_number(self.reset_value) == v
+                                            for v in info.deltas.get(self.reset_var, []))
+
+    def run(self, now: float, was_running: bool) -> bool:
+        """Count one running iteration; True when the limit is reached."""
+        if self.started is None:
+            self.reset(now)
+        elif not self.idle_decay and was_running:
+            self.running_time += now - (self.last_tick or now)
+        return self.limit is not None and self.elapsed(now) >= self.limit
+
+    def remaining(self, now: float) -> float:
+        return round(max(self.limit - self.elapsed(now), 0.0), 2)
+
+
+def flag_param(kind: str, *aliases: str) -> ParamSpec:
+    """A flag list (`kind = VAR = value [[if] condition]`); `clearall` empties it."""
+    def add(bhv: "IvPBehavior", value: str) -> None:
+        try:
+            flag = parse_flag(value)
+        except FlagError as exc:
+            raise ValueError(str(exc)) from None
+        if flag is None:
+            bhv.flags[kind] = []
+        else:
+            bhv.flags.setdefault(kind, []).append(flag)
+    return ParamSpec((kind, *aliases), Parser("flag", lambda value, key: value), add, None,
+                     "`VAR = value [[if] condition]`, repeatable; `clearall` empties the list")
+
+
+def _duration_limit(value: str, key: str) -> float | None:
+    return None if value.strip().lower() in ("no-time-limit", "-1") else parse_number(value, key, 0)
+
+
+def _duration_reset(value: str, key: str) -> tuple[str, str]:
+    var, sep, val = value.partition("=")
+    if not sep or not var.strip():
+        raise ValueError(f"duration_reset must be VAR=value, got '{value}'")
+    return var.strip(), val.strip()
+
+
+def _set_duration_reset(bhv: "IvPBehavior", var_value: tuple[str, str]) -> None:
+    bhv.duration.reset_var, bhv.duration.reset_value = var_value
+
+
+def _nostarve(value: str, key: str) -> tuple[list[str], float]:
+    parts = [p.strip() for p in value.split(",")]
+    if len(parts) < 2:
+        raise ValueError(f"{key} must be VAR1,...,secs, got '{value}'")
+    return parts[:-1], parse_number(parts[-1], key, 0)
+
+
+def _post_mapping(value: str, key: str) -> tuple[str, str]:
+    old, sep, new = value.partition(",")
+    if not sep:
+        raise ValueError(f"post_mapping must be OLDVAR,NEWVAR, got '{value}'")
+    return old.strip(), new.strip()
+
+
+def _condition(value: str, key: str):
+    try:
+        return parse_behavior_condition(value)
+    except ConditionError as exc:
+        raise ValueError(str(exc)) from None
+
 
 class IvPBehavior:
-    """A behaviour instance; subclasses set `type_name`, `default_name`, `info_vars` and override hooks."""
+    """A behaviour instance; subclasses set `type_name`, `default_name`, `info_vars`, declare their
+    parameters (`params`, `@param`) and override the hooks.
+
+    The behaviour owns its life cycle, as MOOS-IvP's IvPBehavior does: each iteration the helm calls
+    `tick(now)` (updates, conditions, duration, state, flags, BHV_STATUS; the objective function or
+    None), then `take_posts()`; a template's copy is named by `spawn_as(suffix)`."""
 
     type_name = "BHV_Base"
     default_name = "bhv"
     info_vars: tuple[str, ...] = ()
     domain_vars: tuple[str, ...] = ("course", "speed")
+    uses_contacts = False    # reads other vehicles' NODE_REPORTs (`<NAME>_NAV_*`) from the info buffer
+    parameters: dict[str, ParamSpec] = {}
+    attr_specs: dict[str, ParamSpec] = {}
+    params: tuple[ParamSpec, ...] = (
+        ParamSpec(("name", "descriptor"), TEXT, lambda b, v: setattr(b, "name", v), None,
+                  "behaviour name (a spawned copy: the template's name + suffix)"),
+        attr(("pwt", "priority", "priwt"), "pwt", NON_NEGATIVE, "100", "priority weight of the objective function"),
+        ParamSpec(("condition",), Parser("condition", _condition), lambda b, c: b.conditions.append(c), None,
+                  "run condition, repeatable; all must hold"),
+        *(flag_param(kind, *(("spawnx_flag",) if kind == "spawnxflag" else ())) for kind in FLAG_KINDS),
+        attr("updates", "updates_var", TEXT, "", doc="variable carrying `param=value # param=value` updates"),
+        attr("perpetual", "perpetual", BOOLEAN, "false", "completing posts the endflags but does not end it"),
+        ParamSpec(("duration",), Parser("seconds \\| no-time-limit", _duration_limit),
+                  lambda b, v: setattr(b.duration, "limit", v), None, "complete after running this long"),
+        ParamSpec(("duration_status",), TEXT, lambda b, v: setattr(b.duration, "status_var", v), None,
+                  "variable for the seconds left"),
+        ParamSpec(("duration_idle_decay",), BOOLEAN, lambda b, v: setattr(b.duration, "idle_decay", v), "true",
+                  "idle time counts against the duration"),
+        ParamSpec(("duration_reset",), Parser("VAR=value", _duration_reset), _set_duration_reset, None,
+                  "restart the duration when VAR is posted this value"),
+        attr(("nostarve", "no_starve"), "nostarve", Parser("VAR,...,secs", _nostarve),
+             doc="idle while one of the variables is older than secs"),
+        ParamSpec(("post_mapping",), Parser("OLDVAR,NEWVAR", _post_mapping),
+                  lambda b, v: b.post_mapping.__setitem__(*v), None, "rename a posted variable (`silent` drops it)"),
+        attr("templating", "templating", Parser("word", lambda value, key: value.lower()), "",
+             "`spawn`: a template, copied per `name=` update of its `updates` variable"),
+        accepted(("comms_policy", "max_spawnings", "build_info", "precision"),
+                 "accepted for compatibility; they tune features this helm does not have"),
+    )
+
+    def __init_subclass__(cls, inherit: tuple[str, ...] | None = None, **kwargs) -> None:
+        """Build the type's parameter table; `inherit` limits what it takes from its parent type."""
+        super().__init_subclass__(**kwargs)
+        base = cls.__mro__[1]
+        parent = base.parameters
+        if inherit is not None:
+            parent = {k: s for k, s in parent.items() if k in IvPBehavior.parameters or k in inherit}
+        cls.parameters = collect(cls, parent)
+        # Attributes keep their declared defaults even where a type does not take the parameter.
+        cls.attr_specs = {**base.attr_specs, **{s.attr: s for s in unique_specs(cls.parameters) if s.attr}}
 
     def __init__(self, domain: IvPDomain, info: InfoBuffer, ownship: str = ""):
         self.domain, self.info, self.ownship = domain, info, ownship
         self.name = self.default_name
-        self.pwt = 100.0
         self.conditions: list = []
         self.flags: dict[str, list[FlagSpec]] = {k: [] for k in FLAG_KINDS}
-        self.updates_var = ""
-        self.perpetual = False
         self.duration = Duration()
-        self.nostarve: tuple[list[str], float] | None = None
         self.post_mapping: dict[str, str] = {}
-        self.templating = ""
         self.spawn_suffix = ""
         self.state = ""          # "", idle, running, active, completed
         self.completed = False
@@ -144,88 +243,173 @@ class IvPBehavior:
         self.last_update = ""
         self.good_updates = self.bad_updates = 0
         self.now = 0.0
+        self.started = False     # the configflags and spawnxflags go out on the first iteration
         self._first_macro_time: float | None = None
         self._counter = 0
         self.run_started: float | None = None
         self.idle_started: float | None = None
+        for name, spec in self.attr_specs.items():
+            setattr(self, name, None if spec.default is None else spec.parse(spec.default, spec.name))
 
     # ---- configuration -------------------------------------------------------------
-    def set_param(self, key: str, value: str) -> bool:
-        """Behaviour-specific parameter; return False when the key is not one of ours."""
-        return False
-
-    def set_general(self, key: str, value: str) -> bool:
-        """Parameters every behaviour accepts (mission-files.md §2.5); raises ValueError on bad values."""
-        key = key.lstrip("_")
-        if key in ("name", "descriptor"):
-            self.name = value
-        elif key in ("pwt", "priority", "priwt"):
-            self.pwt = parse_number(value, key, 0)
-        elif key == "condition":
-            try:
-                self.conditions.append(parse_behavior_condition(value))
-            except ConditionError as exc:
-                raise ValueError(str(exc)) from None
-        elif key in FLAG_KINDS or key == "spawnx_flag" or self.is_flag_kind(key):
-            kind = "spawnxflag" if key == "spawnx_flag" else key
-            try:
-                flag = parse_flag(value)
-            except FlagError as exc:
-                raise ValueError(str(exc)) from None
-            if flag is None:
-                self.flags[kind] = []
-            else:
-                self.flags.setdefault(kind, []).append(flag)
-        elif key == "updates":
-            self.updates_var = value
-        elif key == "perpetual":
-            self.perpetual = parse_bool(value, key)
-        elif key == "duration":
-            low = value.lower()
-            self.duration.limit = None if low in ("no-time-limit", "-1") else parse_number(value, key, 0)
-        elif key == "duration_status":
-            self.duration.status_var = value
-        elif key == "duration_idle_decay":
-            self.duration.idle_decay = parse_bool(value, key)
-        elif key == "duration_reset":
-            var, sep, val = value.partition("=")
-            if not sep or not var.strip():
-                raise ValueError(f"duration_reset must be VAR=value, got '{value}'")
-            self.duration.reset_var, self.duration.reset_value = var.strip(), val.strip()
-        elif key in ("nostarve", "no_starve"):
-            parts = [p.strip() for p in value.split(",")]
-            self.nostarve = (parts[:-1], parse_number(parts[-1], key, 0)) if len(parts) > 1 else None
-            if self.nostarve is None:
-                raise ValueError(f"{key} must be VAR1,...,secs, got '{value}'")
-        elif key == "post_mapping":
-            old, sep, new = value.partition(",")
-            if not sep:
-                raise ValueError(f"post_mapping must be OLDVAR,NEWVAR, got '{value}'")
-            self.post_mapping[old.strip()] = new.strip()
-        elif key == "templating":
-            self.templating = value.lower()
-        elif key in ("comms_policy", "max_spawnings", "build_info", "precision"):
-            pass  # accepted for compatibility; they only tune features this helm does not have
-        else:
-            return False
-        return True
-
-    def is_flag_kind(self, key: str) -> bool:
-        """Behaviour types with extra flag lists (Waypoint: cycleflag, wptflag) extend this."""
-        return False
-
-    def apply(self, key: str, value: str, *, general_first: bool = True) -> None:
-        """Apply one `param = value`; raise ValueError when neither setter accepts it."""
+    @classmethod
+    def spec_for(cls, key: str) -> ParamSpec | None:
+        """The declaration of a `.bhv` key (a leading `_` is allowed on the general ones), or None."""
         key = key.strip().lower()
-        value = value.strip()
-        order = (self.set_general, self.set_param) if general_first else (self.set_param, self.set_general)
-        for setter in order:
-            if setter(key, value):
-                return
-        raise ValueError(f"unknown parameter '{key}' for {self.type_name}")
+        return cls.parameters.get(key) or IvPBehavior.parameters.get(key.lstrip("_"))
+
+    def apply(self, key: str, value: str) -> None:
+        """Apply one `param = value`; raise ValueError for an unknown key or a bad value."""
+        spec = self.spec_for(key)
+        if spec is None:
+            raise ValueError(f"unknown parameter '{key.strip().lower()}' for {self.type_name}")
+        spec.apply(self, value.strip(), key.strip().lower())
+
+
+    # ---- life cycle: what the helm calls ------------------------------------------------
+    def spawn_as(self, suffix: str) -> None:
+        """Make this fresh copy of a template the instance `<template name><suffix>`."""
+        self.name, self.spawn_suffix, self.templating = self.name + suffix, suffix, ""
+
+    def take_posts(self) -> list[Post]:
+        posts, self.posts = self.posts, []
+        return posts
+
+    def tick(self, now: float) -> IvPFunction | None:
+        """One helm iteration: updates, conditions, duration, state transitions with their flags
+        and hooks, BHV_STATUS; returns the objective function when active."""
+        self.now = now
+        self._apply_updates(now)
+        if not self.started:
+            self.started = True
+            self.post_flags("configflag")
+            self.post_flags("spawnxflag")
+        dur = self.duration
+        if dur.reset_requested(self.info):
+            dur.reset(now)
+        prev = self.state
+        failed = next((c for c in self.conditions if not c.evaluate(self.info.get)), None)
+        if self.completed:
+            state = "completed"
+        elif failed is not None:
+            state = "idle"
+        else:
+            state = "running"
+            if dur.run(now, was_running=prev in ("running", "active")):
+                self.set_complete()
+                if self.completed:
+                    state = "completed"
+                else:
+                    dur.reset(now)
+            if state == "running" and self._starved(now):
+                state = "idle"
+        dur.last_tick = now
+        self.on_every_state()
+        fn = None
+        if state == "idle":
+            self._idle(prev)
+        elif state == "running":
+            fn = self._run(prev)
+            if fn is not None:
+                state = "active"
+        if self.completed:
+            state, fn = "completed", None
+        self.state = state
+        status = f"name={self.name}" + (f",pc={failed}" if failed is not None and state == "idle" else "")
+        status += f",updates={self.good_updates}/{self.good_updates + self.bad_updates},state={state}"
+        self.post("BHV_STATUS", status + (f",pwt={fn.pwt:g}" if fn is not None else ""))
+        return fn
+
+    def _idle(self, prev: str) -> None:
+        if prev != "idle":
+            self.idle_started = self.now
+            self.post_flags("idleflag")
+            self.post_flags("inactiveflag")
+            if prev in ("running", "active"):
+                self.on_run_to_idle()
+        self.on_idle_state()
+
+    def _run(self, prev: str) -> IvPFunction | None:
+        if prev in ("idle", ""):
+            self.run_started = self.now
+            if prev == "idle":
+                self.on_idle_to_run()
+        fn = self.on_run_state()
+        if prev in ("idle", ""):
+            self.post_flags("runflag")
+        self.post_flags("runxflag")
+        if self.duration.status_var and self.duration.limit is not None:
+            self.post(self.duration.status_var, self.duration.remaining(self.now))
+        if fn is not None and fn.has_nan():
+            self.post("BHV_ERROR", f"{self.name}: objective function has NaN", repeatable=True)
+            fn = None
+        if fn is not None and fn.pwt <= 0:
+            fn = None
+        if fn is not None and prev != "active":
+            self.post_flags("activeflag")
+        elif fn is None and prev == "active":
+            self.post_flags("inactiveflag")
+        return fn
+
+    def _starved(self, now: float) -> bool:
+        if not self.nostarve:
+            return False
+        names, secs = self.nostarve
+        return any(self.info.times.get(v) is None or now - self.info.times[v] > secs for v in names)
+
+    def _apply_updates(self, now: float) -> None:
+        """Each string posted to the `updates` variable this iteration, answered by IVPHELM_UPDATE_RESULT."""
+        if not self.updates_var:
+            return
+        for raw in self.info.deltas.get(self.updates_var, []):
+            text = str(raw).strip()
+            if not text:
+                continue
+            low = text.lower()
+            if text == self.last_update and not any(w in low for w in ("toggle", "engage", "mod")):
+                result = "duplicate"
+            else:
+                result = self._apply_update_string(text)
+            self.post("IVPHELM_UPDATE_RESULT",
+                      f"bhv={self.name},var={self.updates_var},time={now:.2f},result={result},val={text}",
+                      repeatable=True)
+
+    def _apply_update_string(self, text: str) -> str:
+        pairs = [p.partition("=") for p in text.split("#") if p.strip()]
+        for key, _, value in pairs:
+            if key.strip().lower() == "name" and value.strip() != (self.spawn_suffix or self.name):
+                return "name_mismatch"
+        bad = []
+        for key, sep, value in pairs:
+            if key.strip().lower() == "name":
+                continue
+            try:
+                if not sep:
+                    raise ValueError
+                self.apply(key, value)
+            except ValueError:
+                bad.append(key.strip())
+        if bad:
+            self.post("BHV_WARNING", f"Faulty update for behavior: {self.name}. Bad parameter(s): {','.join(bad)}",
+                      repeatable=True)
+            self.bad_updates += 1
+            return "param_error"
+        self.good_updates += 1
+        self.last_update = text
+        self.post_flags("configflag")
+        self.on_update_applied()
+        return "success"
 
     def needed_domain_vars(self) -> tuple[str, ...]:
         return self.domain_vars
+
+    def delta_vars(self) -> list[str]:
+        """Variables whose every post this iteration matters (updates, duration resets), not just the last."""
+        return [v for v in (self.updates_var, self.duration.reset_var) if v]
+
+    def run_condition_vars(self) -> list[str]:
+        """The variables of the run conditions (IVPHELM_STATEVARS)."""
+        return [v for c in self.conditions for v in c.variables()]
 
     def condition_vars(self) -> list[str]:
         names = [v for c in self.conditions for v in c.variables()]
@@ -313,6 +497,9 @@ class IvPBehavior:
         return None
 
     # ---- life cycle hooks (subclasses) ------------------------------------------------
+    def on_helm_start(self) -> None:
+        """Called once when the helm starts, templates included (e.g. to request contact alerts)."""
+
     def on_every_state(self) -> None:
         pass
 
@@ -344,3 +531,7 @@ class IvPBehavior:
             self.post("BHV_ERROR", f"{self.name}: No ownship NAV_X/NAV_Y in info_buffer", repeatable=True)
             return None
         return x, y, self.info.number("NAV_HEADING"), self.info.number("NAV_SPEED")
+
+
+IvPBehavior.parameters = collect(IvPBehavior, {})
+IvPBehavior.attr_specs = {s.attr: s for s in unique_specs(IvPBehavior.parameters) if s.attr}

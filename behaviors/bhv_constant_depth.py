@@ -1,7 +1,7 @@
 """BHV_ConstantDepth: hold one depth (a peak over the depth domain variable only)."""
 from __future__ import annotations
 
-from .bhv_constant_speed import OneVarPeak
+from .bhv_constant_speed import OneVarPeak, peak_params
 
 
 class BHV_ConstantDepth(OneVarPeak):
@@ -9,6 +9,4 @@ class BHV_ConstantDepth(OneVarPeak):
     default_name = "bhv_constantdepth"
     decision_var = "depth"
     value_param = "depth"
-    peakwidth = 3.0
-    basewidth = 100.0
-    summitdelta = 50.0
+    params = peak_params("depth", wrap=False, peakwidth=3, basewidth=100, summitdelta=50)

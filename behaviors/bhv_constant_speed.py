@@ -1,9 +1,31 @@
 """BHV_ConstantSpeed and the shared one-variable peak objective it (and BHV_ConstantHeading) build."""
 from __future__ import annotations
 
-from .behavior import IvPBehavior, parse_number
+from .behavior import IvPBehavior
+from .geometry import fmt_num
 from .ivp_function import IvPFunction
+from .parameters import NON_NEGATIVE, NUMBER, ParamSpec, Parser, attr
 from .zaic import PeakComponent, zaic_peak
+
+
+def _variable_name(value: str, key: str) -> str:
+    if any(c.isspace() for c in value):
+        raise ValueError(f"{key} must be a MOOS variable name without blanks, got '{value}'")
+    return value
+
+
+def peak_params(value_param: str, wrap: bool, peakwidth: float, basewidth: float,
+                summitdelta: float) -> tuple[ParamSpec, ...]:
+    """The desired value, the peak's shape (with the type's own defaults) and the mismatch report."""
+    return (
+        attr(value_param, "desired", NUMBER if wrap else NON_NEGATIVE, doc=f"the desired {value_param}"),
+        attr("peakwidth", "peakwidth", NON_NEGATIVE, fmt_num(peakwidth), "width of the flat top"),
+        attr("basewidth", "basewidth", NON_NEGATIVE, fmt_num(basewidth), "width of each falling side"),
+        attr("summitdelta", "summitdelta", NON_NEGATIVE, fmt_num(summitdelta), "utility drop across the top"),
+        attr(f"{value_param}_mismatch_var", "mismatch_var", Parser("variable", _variable_name), "",
+             f"variable for |NAV_{value_param.upper()} - {value_param}| each running iteration"
+             + (" (the smaller angle)" if wrap else "")),
+    )
 
 
 class OneVarPeak(IvPBehavior):
@@ -12,9 +34,6 @@ class OneVarPeak(IvPBehavior):
     decision_var = "speed"
     value_param = "speed"
     value_wrap = False
-    peakwidth = 0.0
-    basewidth = 0.0
-    summitdelta = 0.0
     # These behaviours time out at once unless given a `duration` (or `duration = no-time-limit`),
     # as in MOOS-IvP: they are meant to be bounded in time.
     default_duration = 0.0
@@ -22,27 +41,30 @@ class OneVarPeak(IvPBehavior):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.desired: float | None = None
-        self.peakwidth, self.basewidth, self.summitdelta = (type(self).peakwidth, type(self).basewidth,
-                                                            type(self).summitdelta)
         self.domain_vars = (self.decision_var,)
         self.duration.limit = self.default_duration
 
-    def set_param(self, key: str, value: str) -> bool:
-        if key == self.value_param:
-            self.desired = parse_number(value, key, 0 if not self.value_wrap else None)
-        elif key == "peakwidth":
-            self.peakwidth = parse_number(value, key, 0)
-        elif key == "basewidth":
-            self.basewidth = parse_number(value, key, 0)
-        elif key == "summitdelta":
-            self.summitdelta = parse_number(value, key, 0)
-        else:
-            return False
-        return True
+    def mismatch(self) -> float | None:
+        """How far ownship is from the desired value (NAV_<VALUE>), or None when not known."""
+        now = self.info.number(f"NAV_{self.value_param.upper()}")
+        if now is None:
+            return None
+        delta = abs(now - self.desired)
+        return min(delta % 360.0, 360.0 - delta % 360.0) if self.value_wrap else delta
+
+    def completed_by_mismatch(self, mismatch: float) -> bool:
+        """BHV_ConstantHeading's complete_thresh; the others never complete this way."""
+        return False
 
     def on_run_state(self) -> IvPFunction | None:
         if self.desired is None:
             self.post("BHV_WARNING", f"{self.name}: no {self.value_param} set", repeatable=True)
+            return None
+        mismatch = self.mismatch()
+        if mismatch is not None and self.mismatch_var:
+            self.post(self.mismatch_var, round(mismatch, 6))
+        if mismatch is not None and self.completed_by_mismatch(mismatch):
+            self.set_complete()
             return None
         var = self.domain.var(self.decision_var)
         summit = self.desired % 360.0 if self.value_wrap else min(self.desired, var.high)
@@ -60,4 +82,4 @@ class BHV_ConstantSpeed(OneVarPeak):
 
     type_name = "BHV_ConstantSpeed"
     default_name = "bhv_constant_speed"
-    basewidth = 0.2
+    params = peak_params("speed", wrap=False, peakwidth=0, basewidth=0.2, summitdelta=0)

@@ -13,15 +13,17 @@ from pydantic import BaseModel, ConfigDict
 
 from moosdb_py.source import MissionFileError, SourceLine
 
-from .flags import FLAG_KINDS, FlagError, parse_flag
-from .logic import ConditionError, Relation, as_number, parse_behavior_condition, parse_mode_condition
+from .behavior import InfoBuffer, IvPBehavior, flag_param
+from .domain import IvPDomain
+from .flags import FLAG_KINDS
+from .logic import ConditionError, Relation, as_number, parse_mode_condition
+from .registry import PluginError, behavior_class
 
 Value = Union[float, str]
 _NAME_OK = re.compile(r"^[A-Za-z0-9_\-\[\]()#@+]+$")
-# Default names of unnamed behaviours (two unnamed ones of a type clash).
-DEFAULT_NAMES = {"bhv_waypoint": "bhv_waypoint", "bhv_stationkeep": "station_keep",
-                 "bhv_constantspeed": "bhv_constant_speed", "bhv_constantheading": "bhv_constantHeading",
-                 "bhv_constantdepth": "bhv_constantdepth", "bhv_loiter": "loiter"}
+# General lines checked as the file is read (the rest when the helm builds the behaviour).
+CHECKED_AT_PARSE = {"condition", "pwt", "priority", "priwt", "duration", "perpetual", "spawnx_flag", "cycleflag",
+                    "wptflag", *FLAG_KINDS}
 
 
 class BhvParam(BaseModel):
@@ -75,8 +77,15 @@ class BehaviorSpec(BaseModel):
 
     @property
     def name(self) -> str:
-        return self.get("name") or self.get("descriptor") or DEFAULT_NAMES.get(
-            self.type.lower(), self.type.lower())
+        """The `name` line, else the type's default name (two unnamed ones of a type clash)."""
+        given = self.get("name") or self.get("descriptor")
+        if given:
+            return given
+        try:
+            cls = behavior_class(self.type)
+        except PluginError:
+            cls = None     # reported where the helm builds it
+        return cls.default_name if cls else self.type.lower()
 
     @property
     def templating(self) -> str:
@@ -170,22 +179,18 @@ def _check_general(spec: BehaviorSpec) -> None:
 
 
 def _general_problem(key: str, value: str) -> str | None:
-    try:
-        if key == "condition":
-            parse_behavior_condition(value)
-        elif key in FLAG_KINDS or key in ("cycleflag", "wptflag", "spawnx_flag"):
-            parse_flag(value)
-    except (ConditionError, FlagError) as exc:
-        return str(exc)
-    number = as_number(value)
-    if key in ("pwt", "priority", "priwt") and (number is None or number < 0):
-        return f"must be a number >= 0, got '{value}'"
+    """What the helm would reject in a general line, judged by the parameter's own declaration."""
     if key in ("name", "descriptor") and not _NAME_OK.match(value):
         return f"bad behavior name '{value}'"
-    if key == "duration" and value.lower() != "no-time-limit" and number is None:
-        return f"must be seconds or no-time-limit, got '{value}'"
-    if key == "perpetual" and value.lower() not in ("true", "false"):
-        return f"must be true or false, got '{value}'"
+    spec = IvPBehavior.spec_for(key)
+    if key in ("cycleflag", "wptflag"):
+        spec = flag_param(key)
+    if spec is None or key not in CHECKED_AT_PARSE:
+        return None
+    try:
+        spec.apply(IvPBehavior(IvPDomain(vars=[]), InfoBuffer()), value, key)
+    except ValueError as exc:
+        return str(exc).removeprefix(f"{key} ")
     return None
 
 

@@ -11,57 +11,53 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from .behavior import parse_bool, parse_number
 from .bhv_waypoint import BHV_Waypoint
-from .geometry import GeometryError, distance, format_seglist, parse_point, parse_polygon
+from .geometry import distance, format_seglist, parse_point, parse_polygon
 from .ivp_function import IvPFunction
+from .parameters import BOOLEAN, NON_NEGATIVE, Parser, attr, one_of, param, parse_number
 
-SHARED_WITH_WAYPOINT = {"post_suffix", "speed", "speed_alt", "use_alt_speed", "capture_radius", "radius", "slip_radius",
-                        "nm_radius", "ipf_type", "ipf-type", "crs_spd_zaic_ratio", "patience", "visual_hints"}
+SHARED_WITH_WAYPOINT = ("post_suffix", "speed", "speed_alt", "use_alt_speed", "capture_radius", "radius", "slip_radius",
+                        "nm_radius", "ipf_type", "ipf-type", "crs_spd_zaic_ratio", "patience", "visual_hints",
+                        "cycleflag", "wptflag")
 
 
-class BHV_Loiter(BHV_Waypoint):
+class BHV_Loiter(BHV_Waypoint, inherit=SHARED_WITH_WAYPOINT):
     type_name = "BHV_Loiter"
     default_name = "loiter"
+    params = (
+        attr("acquire_dist", "acquire_dist", NON_NEGATIVE, "10",
+             "farther than this outside the polygon, the nearest vertex becomes the target again"),
+        attr("center_activate", "center_activate", BOOLEAN, "false",
+             "move the polygon onto ownship each time the behaviour starts running"),
+    )
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.base_polygon = np.zeros((0, 2))
         self.clockwise = "true"
-        self.acquire_dist = 10.0
-        self.center_activate = False
         self.acquiring = False
         self.endless = True
         self.status_var, self.index_var, self.cycle_var = "LOITER_REPORT", "LOITER_INDEX", "LOITER_CYCLES"
 
-    def set_param(self, key: str, value: str) -> bool:
-        low = value.strip().lower()
-        try:
-            if key == "polygon":
-                self.base_polygon = parse_polygon(value)
-                if len(self.base_polygon) < 3:
-                    raise ValueError("loiter polygon needs at least 3 vertices")
-                self._order_vertices()
-            elif key == "clockwise":
-                if low not in ("true", "false", "best"):
-                    raise ValueError("clockwise must be true, false or best")
-                self.clockwise = low
-                self._order_vertices()
-            elif key == "acquire_dist":
-                self.acquire_dist = parse_number(value, key, 0)
-            elif key == "center_activate":
-                self.center_activate = parse_bool(value, key)
-            elif key in ("center_assign", "xcenter_assign", "ycenter_assign"):
-                self._assign_center(key, low)
-            elif key in SHARED_WITH_WAYPOINT:
-                return super().set_param(key, value)
-            else:
-                return False
-        except GeometryError as exc:
-            raise ValueError(str(exc)) from None
-        return True
+    @param("polygon", parse=Parser("convex polygon", lambda value, key: parse_polygon(value)),
+           doc="the vertices to circle (radial forms included), at least 3")
+    def _set_polygon(self, pts: np.ndarray) -> None:
+        if len(pts) < 3:
+            raise ValueError("loiter polygon needs at least 3 vertices")
+        self.base_polygon = pts
+        self._order_vertices()
 
-    def _assign_center(self, key: str, value: str) -> None:
+    @param("clockwise", parse=one_of("true", "false", "best"), default="true",
+           doc="direction of travel; `best`: the one needing the smaller turn from the present heading")
+    def _set_clockwise(self, low: str) -> None:
+        self.clockwise = low
+        self._order_vertices()
+
+    @param("center_assign", "xcenter_assign", "ycenter_assign",
+           parse=Parser("x,y \\| present_position \\| number", lambda value, key: (key, value.strip().lower())),
+           doc="move the polygon's centre to x,y (or ownship's position); the x/y forms move one coordinate")
+    def _assign_center(self, key_value: tuple[str, str]) -> None:
+        key, value = key_value
         if not len(self.base_polygon):
             raise ValueError(f"{key} needs a polygon first")
         cx, cy = self.base_polygon.mean(axis=0)

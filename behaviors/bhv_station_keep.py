@@ -6,13 +6,22 @@ from __future__ import annotations
 
 from collections import deque
 
-from .behavior import IvPBehavior, apply_visual_hints, hint_fields, parse_bool, parse_number
-from .geometry import GeometryError, bearing, distance, fmt_num, parse_point
+from .behavior import IvPBehavior, apply_visual_hints, hint_fields
+from .geometry import bearing, distance, fmt_num, parse_point
 from .ivp_function import IvPFunction, couple
+from .parameters import BOOLEAN, NON_NEGATIVE, Parser, attr, param, parse_number
 from .zaic import PeakComponent, zaic_peak
 
 PROGRESS_WINDOW = 10.0  # seconds of (time, distance) samples judging "progress stopped"
 PROGRESS_SPAN = 5.0
+
+
+def _swing_time(value: str, key: str) -> float:
+    return min(max(parse_number(value, key), 0.0), 60.0)
+
+
+def _hibernation(value: str, key: str) -> float:
+    return -1.0 if value.strip().lower() in ("off", "-1") else parse_number(value, key, 0)
 
 
 class BHV_StationKeep(IvPBehavior):
@@ -20,18 +29,24 @@ class BHV_StationKeep(IvPBehavior):
     default_name = "station_keep"
     info_vars = ("NAV_X", "NAV_Y", "NAV_HEADING")
 
+    params = (
+        attr("center_activate", "center_activate", BOOLEAN, "false",
+             "station = ownship's position each time it becomes active (swing while `swing_time` runs)"),
+        attr("swing_time", "swing_time", Parser("seconds, clipped to 0..60", _swing_time), "0",
+             "after a center_activate, keep the heading this long before fixing the station"),
+        attr("hibernation_radius", "hibernation_radius", Parser("off \\| -1 \\| number > 0", _hibernation), "off",
+             "the PSKEEP_MODE machine of ivp-helm.md §6.4"),
+    )
+
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.static_pt: tuple[float, float] | None = None
         self.station: tuple[float, float] | None = None
         self.station_pending = False
-        self.center_activate = False
         self.center_pending = True
         self.swing_until = 0.0
         self.inner, self.outer = 4.0, 15.0
         self.outer_speed, self.transit_speed = 1.2, 2.5
-        self.swing_time = 0.0
-        self.hibernation_radius = -1.0
         self.pskeep = "disabled"
         self.dist = -1.0
         self.samples: deque[tuple[float, float]] = deque()
@@ -39,35 +54,34 @@ class BHV_StationKeep(IvPBehavior):
         self.hints = dict(edge_size="1", vertex_size="1", edge_color="light_blue", label_color="white",
                           vertex_color="red")
 
-    def set_param(self, key: str, value: str) -> bool:
-        low = value.lower()
-        if key in ("station_pt", "point"):
-            try:
-                self.static_pt = parse_point(value)
-            except GeometryError as exc:
-                raise ValueError(str(exc)) from None
-            self.station_pending = True
-        elif key == "center_activate":
-            self.center_activate = parse_bool(value, key)
-        elif key == "inner_radius":
-            self.inner = parse_number(value, key, 0)
-            self.outer = max(self.outer, self.inner)
-        elif key == "outer_radius":
-            self.outer = max(parse_number(value, key, 0), self.inner)
-        elif key == "outer_speed":
-            self.outer_speed = parse_number(value, key, 0)
-            self.transit_speed = max(self.transit_speed, self.outer_speed)
-        elif key in ("transit_speed", "extra_speed"):
-            self.transit_speed = max(parse_number(value, key, 0), self.outer_speed)
-        elif key == "swing_time":
-            self.swing_time = min(max(parse_number(value, key), 0.0), 60.0)
-        elif key == "hibernation_radius":
-            self.hibernation_radius = -1.0 if low in ("off", "-1") else parse_number(value, key, 0)
-        elif key == "visual_hints":
-            apply_visual_hints(self.hints, value)
-        else:
-            return False
-        return True
+    @param("station_pt", "point", parse=Parser("x,y", lambda value, key: parse_point(value)),
+           doc="static station, applied on the first run and after an update")
+    def _set_station_pt(self, point: tuple[float, float]) -> None:
+        self.static_pt, self.station_pending = point, True
+
+    @param("inner_radius", parse=NON_NEGATIVE, default="4", doc="speed 0 inside; outer raised to it if smaller")
+    def _set_inner(self, radius: float) -> None:
+        self.inner = radius
+        self.outer = max(self.outer, radius)
+
+    @param("outer_radius", parse=NON_NEGATIVE, default="15", doc="`outer_speed` here, `transit_speed` beyond")
+    def _set_outer(self, radius: float) -> None:
+        self.outer = max(radius, self.inner)
+
+    @param("outer_speed", parse=NON_NEGATIVE, default="1.2", doc="speed at the outer circle, rising from 0 at the "
+                                                                 "inner one; transit raised to at least it")
+    def _set_outer_speed(self, speed: float) -> None:
+        self.outer_speed = speed
+        self.transit_speed = max(self.transit_speed, speed)
+
+    @param("transit_speed", "extra_speed", parse=NON_NEGATIVE, default="2.5", doc="speed beyond the outer circle")
+    def _set_transit_speed(self, speed: float) -> None:
+        self.transit_speed = max(speed, self.outer_speed)
+
+    @param("visual_hints", parse=Parser("key=value,...", lambda value, key: value),
+           doc="`vertex_color`, `edge_color`, `label_color`, `vertex_size`, `edge_size` on the circles")
+    def _set_visual_hints(self, value: str) -> None:
+        apply_visual_hints(self.hints, value)
 
     def _set_station(self, pt: tuple[float, float]) -> None:
         self.station = pt

@@ -6,38 +6,100 @@ from __future__ import annotations
 
 import numpy as np
 
-from .behavior import IvPBehavior, apply_visual_hints, hint_fields, parse_bool, parse_number
-from .flags import FlagError
+from moosdb_py.formats import FormatError, parse_pairs
+
+from .behavior import IvPBehavior, apply_visual_hints, flag_param, hint_fields
 from .geometry import GeometryError, bearing, distance, fmt_num, format_seglist, parse_point, parse_polygon, parse_seglist
 from .ivp_function import IvPFunction, couple
-from .logic import ConditionError, parse_behavior_condition
+from .logic import parse_behavior_condition
+from .parameters import (BOOLEAN, NON_NEGATIVE, NUMBER, POSITIVE, TEXT, Parser, accepted, attr, one_of, param,
+                         parse_number)
 from .zaic import PeakComponent, zaic_peak
+
+
+def _ratio(value: str, key: str) -> float:
+    ratio = parse_number(value, key, 1)
+    if ratio > 99:
+        raise ValueError(f"{key} must be in 1..99, got '{value}'")
+    return ratio
+
+
+def _ipf_type(value: str, key: str) -> str:
+    low = value.strip().lower()
+    if low in ("roc", "rate_of_closure"):
+        raise ValueError(f"ipf_type '{value}' (rate of closure) is not supported by this helm: "
+                         "ivp-helm.md gives no formula for it; use zaic or zaic_spd")
+    if low not in ("zaic", "zaic_spd"):
+        raise ValueError(f"ipf_type must be zaic or zaic_spd, got '{value}'")
+    return low
+
+
+def _end_spd(value: str, key: str) -> tuple[float, float]:
+    try:
+        props = parse_pairs(value)
+    except FormatError as exc:
+        raise ValueError(f"end_spd: {exc}") from None
+    slow = parse_number(props.get("slow_dist", ""), "slow_dist", 0)
+    stop = parse_number(props.get("stop_dist", ""), "stop_dist", 0)
+    if stop > slow:
+        raise ValueError("end_spd needs stop_dist <= slow_dist")
+    return slow, stop
+
+
+def _post_suffix(value: str, key: str) -> str:
+    if any(c.isspace() for c in value):
+        raise ValueError("post_suffix must not contain blanks")
+    return value if not value or value.startswith("_") else "_" + value
 
 
 class BHV_Waypoint(IvPBehavior):
     type_name = "BHV_Waypoint"
     default_name = "bhv_waypoint"
     info_vars = ("NAV_X", "NAV_Y", "NAV_SPEED", "NAV_HEADING")
+    params = (
+        attr(("capture_radius", "radius"), "capture_radius", POSITIVE, "3", "strict `dist < radius` captures"),
+        attr(("slip_radius", "nm_radius"), "slip_radius", NON_NEGATIVE, "15",
+             "slip hit when moving away after coming within it"),
+        attr("lead_to_start", "lead_to_start", BOOLEAN, "false",
+             "with `lead`: the first leg's track line starts at the start position"),
+        attr(("wpt_status", "wpt_status_var"), "status_var", TEXT, "WPT_STAT", "status variable; `silent` suppresses"),
+        attr(("wpt_index", "wpt_index_var"), "index_var", TEXT, "WPT_INDEX", "index variable; `silent` suppresses"),
+        attr("cycle_index_var", "cycle_var", TEXT, "CYCLE_INDEX", "cycle count variable; `silent` suppresses"),
+        attr("wpt_dist_to_prev", "dist_prev_var", TEXT, "",
+             "variable for the distance to the previous point, posted each running iteration, -1 on going idle"),
+        attr("wpt_dist_to_next", "dist_next_var", TEXT, "", "the same for the next point"),
+        attr("post_suffix", "suffix", Parser("word", _post_suffix), "",
+             "`_S` appended to WPT_STAT, WPT_INDEX, CYCLE_INDEX, WPT_ODO, WPT_EFF_*"),
+        attr("wptflag_on_start", "wptflag_on_start", BOOLEAN, "false", "post the wptflags when starting"),
+        attr(("ipf_type", "ipf-type"), "ipf_type", Parser("zaic \\| zaic_spd", _ipf_type), "zaic",
+             "objective function shape; `roc`/`rate_of_closure` is an error saying it is not supported "
+             "(the spec gives no formula)"),
+        attr(("crs_spd_zaic_ratio", "patience"), "ratio", Parser("number 1..99", _ratio), "50",
+             "course weight; speed weight 100 - it"),
+        attr("end_spd", "end_spd", Parser("slow_dist=..,stop_dist=..", _end_spd),
+             doc="speed ramp down to 0 over the remaining distance"),
+        attr("reset_on_idle", "reset_on_idle", BOOLEAN, "false", "traversal restarts on going idle"),
+        accepted(("draw_path_loop", "eager_prev_index_flag"), "checked, no effect (drawing detail, PI-macro timing)",
+                 BOOLEAN),
+        flag_param("cycleflag"),
+        flag_param("wptflag"),
+    )
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.points = np.zeros((0, 2))
+        self.reversed = False
         self.ix = 0
         self.cpa: float | None = None
         self.prev: tuple[float, float] | None = None
         self.cycles = self.repeats_sofar = self.capture_hits = self.slip_hits = 0
-        self.repeat, self.endless, self.reversed, self.complete = 0, False, False, False
+        self.repeat, self.endless, self.complete = 0, False, False
         self.speed, self.speed_alt, self.use_alt_speed = 0.0, -1.0, False
-        self.capture_radius, self.slip_radius, self.capture_line = 3.0, 15.0, False
-        self.lead, self.lead_damper, self.lead_to_start = 0.0, 0.0, False
+        self.capture_line = False
+        self.lead, self.lead_damper = 0.0, 0.0
         self.lead_conditions: list = []
         self.lead_start: tuple[float, float] | None = None
-        self.ratio, self.ipf_type = 50.0, "zaic"
-        self.end_spd: tuple[float, float] | None = None
-        self.status_var, self.index_var, self.cycle_var = "WPT_STAT", "WPT_INDEX", "CYCLE_INDEX"
-        self.suffix = ""
-        self.dist_prev_var = self.dist_next_var = ""
-        self.wptflag_on_start = self.wptflags_posted = self.reset_on_idle = False
+        self.wptflags_posted = False
         self.point_start = self.empty_ok = False
         self.odo_leg = 0.0
         self.odo_last: tuple[float, float] | None = None   # None: pick up from here (fresh run)
@@ -48,9 +110,6 @@ class BHV_Waypoint(IvPBehavior):
         self.eff_mark: tuple[float, float, float] | None = None   # x, y, time where the measured leg began
         self.eff_totals = np.zeros(4)    # linear dist, odometer dist, linear time, actual time
         self.flags.update(cycleflag=[], wptflag=[])
-
-    def is_flag_kind(self, key: str) -> bool:
-        return key in ("cycleflag", "wptflag")
 
     # ---- parameters --------------------------------------------------------------------
     def _ownship(self) -> tuple[float, float]:
@@ -70,132 +129,117 @@ class BHV_Waypoint(IvPBehavior):
         self.ix, self.cycles, self.repeats_sofar, self.cpa, self.prev = 0, 0, 0, None, None
         self.complete, self.wptflags_posted = False, False
 
-    def set_param(self, key: str, value: str) -> bool:
+    @param("points", "polygon", parse=Parser("seglist \\| polygon", lambda value, key: value),
+           doc="seglist first (`x,y:x,y`, `pts={..}`, `format=lawnmower`), else a polygon (radial forms) "
+               "entered at the vertex nearest ownship; resets index, cycles and previous point")
+    def _set_points_param(self, value: str) -> None:
+        self.set_points(self._parse_points(value))
+
+    @param("xpoints", parse=Parser("seglist", lambda value, key: value),
+           doc="replaces the points, keeps the index; a different point count is an error")
+    def _set_xpoints(self, value: str) -> None:
+        pts = self._parse_points(value)
+        if len(pts) != len(self.points):
+            raise ValueError(f"xpoints must have {len(self.points)} points")
+        self.points = pts
+
+    @param("point", parse=Parser("x,y \\| start \\| empty", lambda value, key: value),
+           doc="one point; `start` = ownship's position (3 decimals) on the first run; `empty`")
+    def _set_point(self, value: str) -> None:
         low = value.lower()
-        try:
-            if key in ("points", "polygon"):
-                self.set_points(self._parse_points(value))
-            elif key == "xpoints":
-                pts = self._parse_points(value)
-                if len(pts) != len(self.points):
-                    raise ValueError(f"xpoints must have {len(self.points)} points")
-                self.points = pts
-            elif key == "point":
-                self.point_start = low == "start"
-                self.empty_ok = low == "empty"
-                if low in ("start", "empty"):
-                    self.set_points(np.zeros((0, 2)))
-                else:
-                    self.set_points(np.array([parse_point(value)]))
-            elif key == "newpt":
-                if not self.reversed:
-                    self.points = np.vstack([self.points, parse_point(value)])
-            elif key == "speed":
-                speed = min(parse_number(value, key, 0), self.domain.var("speed").high if "speed" in self.domain else np.inf)
-                if speed != self.speed:
-                    self.eff_mark = None    # a leg flown at two speeds says nothing about efficiency
-                self.speed = speed
-            elif key == "speed_alt":
-                speed_alt = parse_number(value, key)
-                if speed_alt != self.speed_alt:
-                    self.eff_mark = None
-                self.speed_alt = speed_alt
-            elif key == "use_alt_speed":
-                use_alt = parse_bool(value, key)
-                if use_alt != self.use_alt_speed:
-                    self.eff_mark = None
-                self.use_alt_speed = use_alt
-            elif key in ("capture_radius", "radius"):
-                self.capture_radius = parse_number(value, key, 0)
-                if self.capture_radius <= 0:
-                    raise ValueError(f"{key} must be > 0, got '{value}'")
-            elif key in ("slip_radius", "nm_radius"):
-                self.slip_radius = parse_number(value, key, 0)
-            elif key == "capture_line":
-                if low == "absolute":
-                    self.capture_line, self.capture_radius, self.slip_radius = True, 0.0, 0.0
-                else:
-                    self.capture_line = parse_bool(value, key)
-            elif key == "lead":
-                self.lead = max(parse_number(value, key), 0.0)
-            elif key == "lead_damper":
-                self.lead_damper = parse_number(value, key, 0)
-                if self.lead_damper <= 0:
-                    raise ValueError(f"lead_damper must be > 0, got '{value}'")
-            elif key == "lead_to_start":
-                self.lead_to_start = parse_bool(value, key)
-            elif key == "lead_condition":
-                self.lead_conditions.append(parse_behavior_condition(value))
-            elif key == "order":
-                if low not in ("normal", "reverse", "reversed", "toggle"):
-                    raise ValueError("order must be normal, reverse or toggle")
-                want = (not self.reversed) if low == "toggle" else low != "normal"
-                if want != self.reversed:
-                    self.reversed = want
-                    self.points, self.ix, self.cpa = self.points[::-1].copy(), 0, None
-            elif key == "repeat":
-                if low == "forever":
-                    self.endless = self.perpetual = True
-                else:
-                    self.repeat = int(parse_number(value, key, 0))
-                    self.endless = False
-                    self.perpetual = self.perpetual or self.repeat > 0
-            elif key == "currix":
-                ix = int(parse_number(value, key, 0))
-                if ix < len(self.points):
-                    self.ix, self.cpa = ix, None
-            elif key in ("wpt_status", "wpt_status_var"):
-                self.status_var = value
-            elif key in ("wpt_index", "wpt_index_var"):
-                self.index_var = value
-            elif key == "cycle_index_var":
-                self.cycle_var = value
-            elif key == "wpt_dist_to_prev":
-                self.dist_prev_var = value
-            elif key == "wpt_dist_to_next":
-                self.dist_next_var = value
-            elif key == "post_suffix":
-                if any(c.isspace() for c in value):
-                    raise ValueError("post_suffix must not contain blanks")
-                self.suffix = value if not value or value.startswith("_") else "_" + value
-            elif key == "wptflag_on_start":
-                self.wptflag_on_start = parse_bool(value, key)
-            elif key in ("ipf_type", "ipf-type"):
-                if low in ("roc", "rate_of_closure"):
-                    raise ValueError(f"ipf_type '{value}' (rate of closure) is not supported by this helm: "
-                                     "ivp-helm.md gives no formula for it; use zaic or zaic_spd")
-                if low not in ("zaic", "zaic_spd"):
-                    raise ValueError(f"ipf_type must be zaic or zaic_spd, got '{value}'")
-                self.ipf_type = low
-            elif key in ("crs_spd_zaic_ratio", "patience"):
-                self.ratio = parse_number(value, key, 1)
-                if self.ratio > 99:
-                    raise ValueError(f"{key} must be in 1..99, got '{value}'")
-            elif key == "end_spd":
-                props = dict(p.split("=", 1) for p in "".join(value.split()).split(",") if "=" in p)
-                slow, stop = parse_number(props.get("slow_dist", ""), "slow_dist", 0), parse_number(
-                    props.get("stop_dist", ""), "stop_dist", 0)
-                if stop > slow:
-                    raise ValueError("end_spd needs stop_dist <= slow_dist")
-                self.end_spd = (slow, stop)
-            elif key == "reset_on_idle":
-                self.reset_on_idle = parse_bool(value, key)
-            elif key == "efficiency_measure":
-                if low not in ("all", "off"):
-                    raise ValueError("efficiency_measure must be all or off")
-                self.efficiency = low == "all"
-            elif key in ("greedy_tour", "shortest_tour"):
-                self.greedy_pending = parse_bool(value, key)
-                self._greedy_tour_when_nav_known()
-            elif key in ("draw_path_loop", "eager_prev_index_flag"):
-                parse_bool(value, key)  # drawing and PI-macro timing details; accepted
-            elif key == "visual_hints":
-                apply_visual_hints(self.hints, value)
-            else:
-                return False
-        except (GeometryError, ConditionError, FlagError) as exc:
-            raise ValueError(str(exc)) from None
-        return True
+        self.point_start, self.empty_ok = low == "start", low == "empty"
+        self.set_points(np.zeros((0, 2)) if low in ("start", "empty") else np.array([parse_point(value)]))
+
+    @param("newpt", parse=Parser("x,y", lambda value, key: parse_point(value)), doc="appended (ignored while reversed)")
+    def _new_point(self, point: tuple[float, float]) -> None:
+        if not self.reversed:
+            self.points = np.vstack([self.points, point])
+
+    @param("speed", parse=NON_NEGATIVE, default="0", doc="cruise speed, clipped to the domain's top speed")
+    def _set_speed(self, speed: float) -> None:
+        speed = min(speed, self.domain.var("speed").high if "speed" in self.domain else np.inf)
+        if speed != self.speed:
+            self.eff_mark = None    # a leg flown at two speeds says nothing about efficiency
+        self.speed = speed
+
+    @param("speed_alt", parse=NUMBER, default="-1", doc="alternative cruise speed, used when `use_alt_speed = true` "
+                                                       "and it is >= 0")
+    def _set_speed_alt(self, speed_alt: float) -> None:
+        if speed_alt != self.speed_alt:
+            self.eff_mark = None
+        self.speed_alt = speed_alt
+
+    @param("use_alt_speed", parse=BOOLEAN, default="false", doc="cruise at `speed_alt`")
+    def _set_use_alt_speed(self, use_alt: bool) -> None:
+        if use_alt != self.use_alt_speed:
+            self.eff_mark = None
+        self.use_alt_speed = use_alt
+
+    @param("capture_line", parse=Parser("boolean \\| absolute", lambda value, key: value.strip().lower()),
+           default="false", doc="passing the line through the point square to the leg captures it; `absolute` "
+                                "also zeroes both radii")
+    def _set_capture_line(self, low: str) -> None:
+        if low == "absolute":
+            self.capture_line, self.capture_radius, self.slip_radius = True, 0.0, 0.0
+        else:
+            self.capture_line = BOOLEAN(low, "capture_line")
+
+    @param("lead", parse=NUMBER, default="0", doc="track-line steering point this far ahead (ivp-helm.md §5.5); "
+                                                  "negative means 0")
+    def _set_lead(self, lead: float) -> None:
+        self.lead = max(lead, 0.0)
+
+    @param("lead_damper", parse=POSITIVE, doc="steering toward the track line grows within this distance of it")
+    def _set_lead_damper(self, damper: float) -> None:
+        self.lead_damper = damper
+
+    @param("lead_condition", parse=Parser("condition", lambda value, key: parse_behavior_condition(value)),
+           doc="lead only while these hold; repeatable")
+    def _add_lead_condition(self, condition) -> None:
+        self.lead_conditions.append(condition)
+
+    @param("order", parse=one_of("normal", "reverse", "reversed", "toggle"), default="normal",
+           doc="a change reverses the points and resets the index")
+    def _set_order(self, low: str) -> None:
+        want = (not self.reversed) if low == "toggle" else low != "normal"
+        if want != self.reversed:
+            self.reversed = want
+            self.points, self.ix, self.cpa = self.points[::-1].copy(), 0, None
+
+    @param("repeat", parse=Parser("N >= 0 \\| forever", lambda value, key: value.strip().lower()), default="0",
+           doc="passes after the first (N > 0 makes it perpetual)")
+    def _set_repeat(self, low: str) -> None:
+        if low == "forever":
+            self.endless = self.perpetual = True
+        else:
+            self.repeat = int(parse_number(low, "repeat", 0))
+            self.endless = False
+            self.perpetual = self.perpetual or self.repeat > 0
+
+    @param("currix", parse=NON_NEGATIVE, doc="jump to this index (ignored when out of range)")
+    def _set_currix(self, ix: float) -> None:
+        if int(ix) < len(self.points):
+            self.ix, self.cpa = int(ix), None
+
+    @param("efficiency_measure", parse=one_of("all", "off"), default="off",
+           doc="`all` posts `WPT_EFF_SUMM_LEG/ALL` (`vname=.., bhv_name=.., linear_dist=.., odo_dist=.., "
+               "efficiency_dist=.., linear_time=.., odo_time=.., efficiency_time=..`) and `WPT_EFF_DIST/TIME_LEG/ALL` "
+               "at each waypoint reached after the first; a start, an idle spell or a speed change only re-marks")
+    def _set_efficiency(self, low: str) -> None:
+        self.efficiency = low == "all"
+
+    @param("greedy_tour", "shortest_tour", parse=BOOLEAN, default="false",
+           doc="nearest-neighbour reorder from ownship, once ownship's position is known")
+    def _set_greedy(self, greedy: bool) -> None:
+        self.greedy_pending = greedy
+        self._greedy_tour_when_nav_known()
+
+    @param("visual_hints", parse=Parser("key=value,...", lambda value, key: value),
+           doc="`vertex_color`, `edge_color` (`off` hides the edges), `label_color`, `vertex_size`, `edge_size` on "
+               "`VIEW_SEGLIST`; `nextpt_color`, `nextpt_lcolor`, `nextpt_vertex_size` on the next/track "
+               "`VIEW_POINT`s; other keys ignored as MOOS-IvP does; lines accumulate")
+    def _set_visual_hints(self, value: str) -> None:
+        apply_visual_hints(self.hints, value)
 
     def _greedy_tour_when_nav_known(self) -> None:
         """The tour starts from ownship, so at startup it waits for the first NAV_X/NAV_Y."""

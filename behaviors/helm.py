@@ -13,25 +13,17 @@ from typing import Union
 from moosdb_py.source import MissionFileError
 
 from .behavior import InfoBuffer, IvPBehavior, Post
-from .bhv_constant_depth import BHV_ConstantDepth
-from .bhv_constant_heading import BHV_ConstantHeading
-from .bhv_constant_speed import BHV_ConstantSpeed
 from .bhv_file import BehaviorSpec, BhvFile
-from .bhv_loiter import BHV_Loiter
-from .bhv_station_keep import BHV_StationKeep
-from .bhv_waypoint import BHV_Waypoint
+from .contacts import node_report_values
 from .domain import IvPDomain
 from .ivp_function import IvPFunction
 from .logic import as_number
+from .registry import PluginError, behavior_class, behavior_types, known_type_names
 from .solver import missing_decisions, solve
 
 Value = Union[float, str]
 HelmPost = tuple[str, Value, str]
-BEHAVIOR_TYPES: dict[str, type[IvPBehavior]] = {
-    cls.type_name.lower(): cls
-    for cls in (BHV_Waypoint, BHV_StationKeep, BHV_ConstantSpeed, BHV_ConstantHeading, BHV_ConstantDepth,
-                BHV_Loiter)
-}
+BEHAVIOR_TYPES = behavior_types()   # what moos-lint looks types up in (registry.behavior_class is the live view)
 ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", "MOOS_MANUAL_OVERRIDE",
                      "MOOS_MANUAL_OVERIDE", "DB_CLIENTS", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
                      "IVPHELM_STATE")
@@ -40,9 +32,12 @@ EMPTY_DECISIONS = ("NothingToDo", "NoGoalBehavior")
 
 def build_behavior(spec: BehaviorSpec, domain: IvPDomain, info: InfoBuffer, ownship: str) -> IvPBehavior:
     """Make and configure a behaviour from its block; errors name the .bhv file and line."""
-    cls = BEHAVIOR_TYPES.get(spec.type.lower())
+    try:
+        cls = behavior_class(spec.type)
+    except PluginError as exc:
+        raise MissionFileError(spec.file, spec.line, str(exc)) from None
     if cls is None:
-        known = ", ".join(c.type_name for c in BEHAVIOR_TYPES.values())
+        known = ", ".join(known_type_names()) or "none: the behaviors.bhv entry points are missing, reinstall the package"
         raise MissionFileError(spec.file, spec.line, f"unknown behavior type '{spec.type}' (this helm has {known})")
     bhv = cls(domain, info, ownship)
     for p in spec.params:
@@ -90,7 +85,6 @@ class Helm:
         self.decision: dict[str, float] = {}
         self.summary_fields: dict[str, str] = {}
         self.bhv_lists: dict[str, str] = {}
-        self.first_iteration: set[str] = set()
         self.last_map_clear = -1e9
         self.nav_grace = 5.0
         self.hold_on_apps: list[str] = []
@@ -101,7 +95,7 @@ class Helm:
 
     def _track_deltas(self) -> None:
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
-            self.info.delta_vars.update(v for v in (bhv.updates_var, bhv.duration.reset_var) if v)
+            self.info.delta_vars.update(bhv.delta_vars())
 
     # ---- subscriptions and startup ---------------------------------------------------
     def subscriptions(self) -> list[str]:
@@ -110,6 +104,8 @@ class Helm:
         names += [i.var for i in self.initializes if i.deferred]
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
             names += bhv.condition_vars()
+            if bhv.uses_contacts:
+                names.append("NODE_REPORT")
         return list(dict.fromkeys(names))
 
     def startup(self, now: float) -> list[HelmPost]:
@@ -125,13 +121,16 @@ class Helm:
         out.append(("IVPHELM_MODESET", modeset, ""))
         out.append(("IVPHELM_STATEVARS", ",".join(self.state_vars()), ""))
         out += [("IVPHELM_REGISTER", v, "") for v in self.subscriptions()]
+        for bhv in self.behaviors + [t for _, t in self.templates.values()]:
+            bhv.on_helm_start()
+            out += [(p.var, p.value, "") for p in bhv.take_posts()]
         return out
 
     def state_vars(self) -> list[str]:
         """Variables the behaviours' states depend on: mode and behaviour conditions."""
         names = [v for m in self.modes for c in m.conditions for v in c.variables()]
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
-            names += [v for c in bhv.conditions for v in c.variables()]
+            names += bhv.run_condition_vars()
         return list(dict.fromkeys(names))
 
     # ---- mail -------------------------------------------------------------------------
@@ -151,6 +150,9 @@ class Helm:
                     self.status = "DRIVE"
                 elif text == "true" and self.allow_park:
                     self.status = "PARK"
+        if var == "NODE_REPORT":
+            for name, field in (node_report_values(str(value)) or {}).items():
+                self.info.set(name, field, time)
         if var == "HELM_MAP_CLEAR" and time - self.last_map_clear >= 2.0:
             self.last_map_clear = time
             self.last_sent.clear()
@@ -209,11 +211,10 @@ class Helm:
         functions: list[IvPFunction] = []
         bhv_posts: list[tuple[IvPBehavior, Post]] = []
         for bhv in self.behaviors:
-            fn = self._run_behavior(bhv, now)
+            fn = bhv.tick(now)
             if fn is not None:
                 functions.append(fn)
-            bhv_posts += [(bhv, p) for p in bhv.posts]
-            bhv.posts = []
+            bhv_posts += [(bhv, p) for p in bhv.take_posts()]
         solve_start = perf_counter()
         self.decision = solve(self.domain, functions) if functions else {}
         self._note_times(create=solve_start - loop_start, solve=perf_counter() - solve_start)
@@ -297,49 +298,6 @@ class Helm:
         return out
 
     # ---- behaviours ------------------------------------------------------------------
-    def _apply_updates(self, bhv: IvPBehavior, now: float) -> list[HelmPost]:
-        out: list[HelmPost] = []
-        if not bhv.updates_var:
-            return out
-        for raw in self.info.deltas.get(bhv.updates_var, []):
-            text = str(raw).strip()
-            if not text:
-                continue
-            low = text.lower()
-            if text == bhv.last_update and not any(w in low for w in ("toggle", "engage", "mod")):
-                result = "duplicate"
-            else:
-                result = self._apply_update_string(bhv, text)
-            out.append(("IVPHELM_UPDATE_RESULT",
-                        f"bhv={bhv.name},var={bhv.updates_var},time={now:.2f},result={result},val={text}", ""))
-        return out
-
-    def _apply_update_string(self, bhv: IvPBehavior, text: str) -> str:
-        pairs = [p.partition("=") for p in text.split("#") if p.strip()]
-        for key, _, value in pairs:
-            if key.strip().lower() == "name" and value.strip() != (bhv.spawn_suffix or bhv.name):
-                return "name_mismatch"
-        bad = []
-        for key, sep, value in pairs:
-            if key.strip().lower() == "name":
-                continue
-            try:
-                if not sep:
-                    raise ValueError
-                bhv.apply(key, value, general_first=False)
-            except ValueError:
-                bad.append(key.strip())
-        if bad:
-            bhv.post("BHV_WARNING", f"Faulty update for behavior: {bhv.name}. Bad parameter(s): {','.join(bad)}",
-                     repeatable=True)
-            bhv.bad_updates += 1
-            return "param_error"
-        bhv.good_updates += 1
-        bhv.last_update = text
-        bhv.post_flags("configflag")
-        bhv.on_update_applied()
-        return "success"
-
     def _spawn(self, now: float, out: list[HelmPost]) -> None:
         for name, (spec, template) in self.templates.items():
             for raw in self.info.deltas.get(template.updates_var, []):
@@ -349,87 +307,10 @@ class Helm:
                 if not suffix or any(b.name == full for b in self.behaviors):
                     continue
                 bhv = build_behavior(spec, self.domain, self.info, self.ownship)
-                bhv.name, bhv.spawn_suffix, bhv.templating = full, suffix, ""
+                bhv.spawn_as(suffix)
                 self.behaviors.append(bhv)
                 out.append(("IVPHELM_LIFE_EVENT", f"iter={self.iteration},time={now:.2f},bname={full},"
                             f"btype={bhv.type_name},event=spawn,seed={raw}", ""))
-
-    def _run_behavior(self, bhv: IvPBehavior, now: float) -> IvPFunction | None:
-        bhv.now = now
-        for var, value, _ in self._apply_updates(bhv, now):
-            bhv.post(var, value, repeatable=True)
-        if bhv.name not in self.first_iteration:
-            self.first_iteration.add(bhv.name)
-            bhv.post_flags("configflag")
-            bhv.post_flags("spawnxflag")
-        dur = bhv.duration
-        if dur.reset_var and any(str(v) == dur.reset_value or (as_number(dur.reset_value) == v)
-                                 for v in self.info.deltas.get(dur.reset_var, [])):
-            dur.reset(now)
-        prev = bhv.state
-        failed = next((c for c in bhv.conditions if not c.evaluate(self.info.get)), None)
-        if bhv.completed:
-            state = "completed"
-        elif failed is not None:
-            state = "idle"
-        else:
-            state = "running"
-            if dur.started is None:
-                dur.reset(now)
-            elif not dur.idle_decay and prev in ("running", "active"):
-                dur.running_time += now - (dur.last_tick or now)
-            if dur.limit is not None and dur.elapsed(now) >= dur.limit:
-                bhv.set_complete()
-                if bhv.completed:
-                    state = "completed"
-                else:
-                    dur.reset(now)
-            if state == "running" and bhv.nostarve and self._starved(bhv, now):
-                state = "idle"
-        dur.last_tick = now
-        bhv.on_every_state()
-        fn = None
-        if state == "idle":
-            if prev != "idle":
-                bhv.idle_started = now
-                bhv.post_flags("idleflag")
-                bhv.post_flags("inactiveflag")
-                if prev in ("running", "active"):
-                    bhv.on_run_to_idle()
-            bhv.on_idle_state()
-        elif state == "running":
-            if prev in ("idle", ""):
-                bhv.run_started = now
-                if prev == "idle":
-                    bhv.on_idle_to_run()
-            fn = bhv.on_run_state()
-            if prev in ("idle", ""):
-                bhv.post_flags("runflag")
-            bhv.post_flags("runxflag")
-            if dur.status_var and dur.limit is not None:
-                bhv.post(dur.status_var, round(max(dur.limit - dur.elapsed(now), 0.0), 2))
-            if fn is not None and fn.has_nan():
-                bhv.post("BHV_ERROR", f"{bhv.name}: objective function has NaN", repeatable=True)
-                fn = None
-            if fn is not None and fn.pwt <= 0:
-                fn = None
-            if fn is not None:
-                state = "active"
-                if prev != "active":
-                    bhv.post_flags("activeflag")
-            elif prev == "active":
-                bhv.post_flags("inactiveflag")
-        if bhv.completed:
-            state, fn = "completed", None
-        bhv.state = state
-        status = f"name={bhv.name}" + (f",pc={failed}" if failed is not None and state == "idle" else "")
-        status += f",updates={bhv.good_updates}/{bhv.good_updates + bhv.bad_updates},state={state}"
-        bhv.post("BHV_STATUS", status + (f",pwt={bhv.pwt:g}" if fn is not None else ""))
-        return fn
-
-    def _starved(self, bhv: IvPBehavior, now: float) -> bool:
-        names, secs = bhv.nostarve
-        return any(self.info.times.get(v) is None or now - self.info.times[v] > secs for v in names)
 
     def _life_events(self, now: float) -> list[HelmPost]:
         out: list[HelmPost] = []

@@ -6,22 +6,26 @@ import sys
 from pathlib import Path
 
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import FormatError, parse_pairs
 from moosdb_py.source import MissionFileError
 
 from .bhv_file import BhvFile, read_bhv
 from .domain import IvPDomain, parse_domain_line
 from .helm import Helm
 from .logic import as_number
+from .parameters import parse_bool
 
 EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
 # Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
 # anything else is a config warning that puts the helm in MALCONFIG, as the C++ helm does.
 KNOWN_PARAMS = frozenset({
-    "apptick", "commstick", "maxappticks", "iteratemode", "debug", "app_logging",
+    "apptick", "commstick", "maxappticks", "maxapptick", "iteratemode", "debug", "app_logging",
     "behaviors", "domain", "active_start", "start_engaged", "start_in_drive", "allow_park", "park_on_allstop",
     "helm_prefix", "ok_skew", "goals_mandatory", "nav_grace", "hold_on_apps", "verbose",
-    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs"})
+    "bhv_dir_not_found_ok", "ivp_behavior_dir", "ivp_behavior_dirs", "pmgen"})
 NOT_SUPPORTED = frozenset({"standby", "other_override_var"})   # real pHelmIvP keys this helm lacks
+# Keys the C++ helm does not read but only warns about (the mission runs): warned here too.
+WARNED_ONLY = frozenset({"term_report_interval"})
 
 
 def parameter_warnings(config) -> list[MissionFileError]:
@@ -30,16 +34,26 @@ def parameter_warnings(config) -> list[MissionFileError]:
     for entry in config.entries:
         if entry.key.lower() in NOT_SUPPORTED:
             out.append(entry.source.error(f"pHelmIvP parameter '{entry.key}' is not supported by this helm"))
-        elif entry.key.lower() not in KNOWN_PARAMS:
+        elif entry.key.lower() == "pmgen" and not _key_value_list(entry.value):
+            out.append(entry.source.error(f"pmgen must be a key=value list (platform model parameters), "
+                                          f"got '{entry.value}'"))
+        elif entry.key.lower() not in KNOWN_PARAMS | WARNED_ONLY:
             out.append(entry.source.error(f"unknown pHelmIvP parameter '{entry.key}'"))
     return out
 
 
-def _bool(value: str, key: str) -> bool:
-    low = value.strip().lower()
-    if low not in ("true", "false"):
-        raise ValueError(f"{key} must be true or false, got '{value}'")
-    return low == "true"
+def ignored_parameter_warnings(config) -> list[MissionFileError]:
+    """Lines of a pHelmIvP block the helm ignores with a warning, as the C++ helm does (it still drives)."""
+    return [entry.source.error(f"pHelmIvP ignores '{entry.key}' (the C++ helm only warns about it)")
+            for entry in config.entries if entry.key.lower() in WARNED_ONLY]
+
+
+def _key_value_list(text: str) -> bool:
+    try:
+        parse_pairs(text)
+    except FormatError:
+        return False
+    return True
 
 
 class HelmIvP(MOOSApp):
@@ -72,8 +86,10 @@ ProcessConfig = pHelmIvP
   verbose         = false         // accepted for compatibility
   bhv_dir_not_found_ok = false    // accepted for compatibility (no behaviour libraries to load)
   app_logging     = false         // accepted for compatibility
+  pmgen           =               // platform-model parameters (key=value list): checked, accepted
 }
-// Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning."""
+// Any other parameter puts the helm in MALCONFIG (it never drives) with a file:line warning;
+// term_report_interval is only warned about, as the C++ helm does."""
     interface = """\
 SUBSCRIPTIONS
   NAV_X, NAV_Y, NAV_HEADING, NAV_SPEED, NAV_DEPTH     ownship navigation
@@ -81,6 +97,7 @@ SUBSCRIPTIONS
   HELM_MAP_CLEAR                                      re-post everything (viewers)
   DB_CLIENTS                                          for hold_on_apps
   IVPHELM_STATE                                       another helm posting disables this one
+  NODE_REPORT                                         other vehicles, when a contact behaviour is configured
   every variable in behaviour/mode/flag conditions, updates and duration_reset variables
 PUBLICATIONS
   DESIRED_HEADING, DESIRED_SPEED, DESIRED_<VAR>       the decision (double), every iteration
@@ -92,7 +109,9 @@ PUBLICATIONS
   NODE_MESSAGE_LOCAL  flags written `#all VAR = value` etc., for uFldNodeBroker to send on
   mode variables (e.g. MODE = ACTIVE:SURVEYING), initialize values, behaviour flags and posts
   (WPT_STAT, WPT_INDEX, CYCLE_INDEX, VIEW_POINT, VIEW_SEGLIST, VIEW_POLYGON, DIST_TO_STATION,
-  PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, ...)"""
+  PSKEEP_MODE, BHV_WARNING, BHV_ERROR, BHV_SETTINGS, OPREG_*, RANGE_AVD_<CONTACT>,
+  CLSG_SPD_AVD_<CONTACT>, ...)
+  BCM_ALERT_REQUEST  at start-up, from each spawning BHV_AvoidCollision template"""
 
     def on_startup(self) -> None:
         cfg = self.config
@@ -106,7 +125,7 @@ PUBLICATIONS
         if not lines:
             raise ValueError("domain: no decision domain given (domain = course:0:359:360)")
         domain = IvPDomain(vars=[self._domain_var(text) for text in lines])
-        active = any(_bool(cfg.get(k), k) for k in ("active_start", "start_engaged", "start_in_drive")
+        active = any(parse_bool(cfg.get(k), k) for k in ("active_start", "start_engaged", "start_in_drive")
                      if cfg.get(k) is not None)
         skew = (cfg.get("ok_skew", "60") or "60").strip().lower()
         if skew != "any" and (as_number(skew) is None or as_number(skew) < 0):
@@ -114,10 +133,10 @@ PUBLICATIONS
         self.ok_skew = None if skew == "any" else as_number(skew)
         ownship = self.mission.community if self.mission is not None else self.name
         self.helm = Helm(files, domain, ownship, app_name=self.name, active_start=active,
-                         allow_park=_bool(cfg.get("allow_park", "true"), "allow_park"),
-                         park_on_allstop=_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
+                         allow_park=parse_bool(cfg.get("allow_park", "true"), "allow_park"),
+                         park_on_allstop=parse_bool(cfg.get("park_on_allstop", "false"), "park_on_allstop"),
                          helm_prefix=cfg.get("helm_prefix", "") or "")
-        _bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
+        parse_bool(cfg.get("goals_mandatory", "false"), "goals_mandatory")   # checked; goal behaviours do not exist here
         grace = as_number(cfg.get("nav_grace", "5") or "")
         if grace is None or grace < 0:
             raise ValueError(f"nav_grace must be seconds >= 0, got '{cfg.get('nav_grace')}'")
@@ -125,6 +144,8 @@ PUBLICATIONS
         self.helm.hold_on_apps = [a.strip() for v in cfg.get_all("hold_on_apps") for a in v.split(",") if a.strip()]
         for warning in parameter_warnings(self.config):
             self.helm.malconfig(str(warning))
+        for warning in ignored_parameter_warnings(self.config):
+            print(f"{self.name}: warning: {warning}", file=sys.stderr)
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
             self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
         for warning in self.helm.config_warnings:

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Iterator, Union
 
+from moosdb_py.formats import is_number, parse_number
+
 Value = Union[float, str]
 Lookup = Callable[[str], "Value | None"]
 
@@ -21,14 +23,8 @@ class ConditionError(ValueError):
 
 
 def as_number(text: str) -> float | None:
-    """MOOS's `isNumber`: a plain decimal/exponent number, no inf/nan words."""
-    t = text.strip()
-    if not t or t.lower().lstrip("+-") in ("inf", "infinity", "nan"):
-        return None
-    try:
-        return float(t)
-    except ValueError:
-        return None
+    """A MOOS number (moosdb_py.formats: decimal or exponent form, finite), or None."""
+    return parse_number(text) if is_number(text) else None
 
 
 @dataclass(frozen=True)

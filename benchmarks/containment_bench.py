@@ -21,22 +21,22 @@ from pathlib import Path
 
 import numpy as np
 
-from oilspill_moos.demo import (
+from oilspill_moos.demo import shipped_boundaries
+from oilspill_moos.oilspill_mission import (
+    ORIGIN,
+    STANDOFF,
     VEHICLE_SPACING,
     Observer,
     OilspillMission,
-    shipped_boundaries,
     vehicle_names,
     wait_for,
 )
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
-from oilspill_moos.planner import containment_region, plan_containment
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
+from oilspill_moos.response.planner import containment_region, plan_containment
 
 TRANSIT_SPEED = 2.5  # the mission's default TRANSIT_SPEED, m/s
-STANDOFF = 30.0
-ORIGIN = (28.736667, -88.387222)
 
 
 def start_line(n: int) -> dict[str, tuple[float, float]]:

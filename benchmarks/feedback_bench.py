@@ -32,8 +32,8 @@ from oilspill_moos.forecaster.dataset import GULF_STEM, load_dataset, split_scen
 from oilspill_moos.forecaster.evaluate import bootstrap_ci, iou
 from oilspill_moos.forecaster.kinds import DEFAULT_MODEL, KINDS
 from oilspill_moos.forecaster.operational import Forecaster
-from oilspill_moos.oil_sensor import SensorModel
-from oilspill_moos.planner import containment_region
+from oilspill_moos.response.oil_sensor import SensorModel
+from oilspill_moos.response.planner import containment_region
 
 LAST_SATELLITE_H = 17
 CYCLES_H = (20, 24, 28, 32)

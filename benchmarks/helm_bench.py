@@ -1,12 +1,16 @@
-"""Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5).
+"""Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5), with 10
+spawned BHV_AvoidCollision behaviours (goal: under 5 ms), and a head-on encounter at 2 m/s.
 
 Each behaviour is a BHV_Waypoint or BHV_StationKeep over the usual course:0:359:360 x speed:0:4:41
 domain, all active at once. The figure is the CPU time (process_time) of one Helm.iterate: on this
-shared 2-core machine wall time mostly measures the other processes.
+shared 2-core machine wall time mostly measures the other processes. The head-on run reports the
+closest approach (goal: at least min_util_cpa_dist) and the time lost against the straight path.
 """
 from __future__ import annotations
 
+import math
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -14,6 +18,9 @@ from behaviors.bhv_file import parse_bhv
 from behaviors.domain import IvPDomain, parse_domain_line
 from behaviors.helm import Helm
 from moosdb_py.source import SourceLine
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "behaviors"))
+from helm_sim import AVOID_MISSION, head_on, node_report as report  # noqa: E402  (the test support module)
 
 
 def bhv_text(n: int) -> str:
@@ -27,29 +34,75 @@ def bhv_text(n: int) -> str:
     return "\n".join(blocks)
 
 
-def bench(n: int, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
-    """(best, median) of the per-batch mean CPU time of one iteration, in ms."""
-    domain = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
-    lines = [SourceLine(t, Path("bench.bhv"), i) for i, t in enumerate(bhv_text(n).splitlines(), 1)]
-    helm = Helm([parse_bhv(lines)], domain, "bench", active_start=True)
+DOMAIN = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
+
+
+def make_helm(text: str) -> Helm:
+    lines = [SourceLine(t, Path("bench.bhv"), i) for i, t in enumerate(text.splitlines(), 1)]
+    helm = Helm([parse_bhv(lines)], DOMAIN, "bench", active_start=True)
     helm.startup(0.0)
-    for var, value in dict(NAV_X=5.0, NAV_Y=-30.0, NAV_HEADING=45.0, NAV_SPEED=1.5).items():
-        helm.on_mail(var, value, 0.0)
-    t = 2.0
-    helm.iterate(t)
-    assert sum(b.state == "active" for b in helm.behaviors) == n
+    return helm
+
+
+def time_iterations(helm: Helm, t: float, batches: int, per_batch: int, mail) -> tuple[float, float]:
+    """(best, median) of the per-batch mean CPU time of one iteration, in ms."""
     means = []
     for _ in range(batches):
         start = time.process_time()
         for _ in range(per_batch):
             t += 0.25
-            helm.on_mail("NAV_X", 5.0 + 0.01 * t, t)
+            mail(t)
             helm.iterate(t)
         means.append((time.process_time() - start) / per_batch * 1e3)
     return min(means), statistics.median(means)
+
+
+def bench(n: int, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
+    helm = make_helm(bhv_text(n))
+    for var, value in dict(NAV_X=5.0, NAV_Y=-30.0, NAV_HEADING=45.0, NAV_SPEED=1.5).items():
+        helm.on_mail(var, value, 0.0)
+    helm.iterate(2.0)
+    assert sum(b.state == "active" for b in helm.behaviors) == n
+    return time_iterations(helm, 2.0, batches, per_batch, lambda t: helm.on_mail("NAV_X", 5.0 + 0.01 * t, t))
+
+
+def contacts_at(t: float, n: int) -> list[str]:
+    """n contacts on a 60 m ring about ownship, each heading across it at 1.5 m/s."""
+    return [report(f"c{i}", 60 * math.sin(2 * math.pi * i / n), 60 * math.cos(2 * math.pi * i / n),
+                   (360 * i / n + 90) % 360, 1.5, t) for i in range(n)]
+
+
+def bench_avoidance(n: int = 10, batches: int = 10, per_batch: int = 20) -> tuple[float, float]:
+    helm = make_helm(AVOID_MISSION)
+    for var, value in dict(NAV_X=0.0, NAV_Y=0.0, NAV_HEADING=0.0, NAV_SPEED=2.0).items():
+        helm.on_mail(var, value, 0.0)
+    for i, text in enumerate(contacts_at(0.0, n)):
+        helm.on_mail("NODE_REPORT", text, 0.0)
+        helm.on_mail("CONTACT_INFO", f"name=c{i} # contact=c{i}", 0.0)
+    helm.iterate(2.0)
+    assert sum(b.state == "active" and b.name.startswith("avd_") for b in helm.behaviors) == n
+
+    def mail(t: float) -> None:
+        for text in contacts_at(t, n):
+            helm.on_mail("NODE_REPORT", text, t)
+    return time_iterations(helm, 2.0, batches, per_batch, mail)
+
+
+def head_on_figures(avoid: bool) -> tuple[float, float]:
+    """(closest approach, transit time) of the head-on encounter, with or without the avoidance."""
+    text = AVOID_MISSION if avoid else AVOID_MISSION[AVOID_MISSION.index("Behavior = BHV_Waypoint"):]
+    closest, arrived, _ = head_on(make_helm(text))
+    return closest, arrived
 
 
 if __name__ == "__main__":
     for n in (1, 5, 20):
         best, median = bench(n)
         print(f"helm iteration, {n:2d} active behaviours: {best:6.2f} ms CPU (median of batches {median:6.2f} ms)")
+    best, median = bench_avoidance()
+    print(f"helm iteration, 10 spawned BHV_AvoidCollision + 1 waypoint: {best:6.2f} ms CPU "
+          f"(median of batches {median:6.2f} ms; goal < 5 ms)")
+    (cpa, t_avoid), (cpa_none, t_straight) = head_on_figures(True), head_on_figures(False)
+    print(f"head-on at 2 m/s: closest approach {cpa:.1f} m with avoidance (min_util_cpa_dist 10 m; "
+          f"{cpa_none:.1f} m without), {t_avoid - t_straight:.1f} s lost against the straight path "
+          f"({t_straight:.1f} s)")

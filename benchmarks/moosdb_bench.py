@@ -5,6 +5,8 @@ MOOSDB can be measured side by side:
 
     python benchmarks/moosdb_bench.py                                  # the Python moosdb
     python benchmarks/moosdb_bench.py --db "MOOSDB --moos_port={port}" --db "moosdb --port {port}"
+    python benchmarks/moosdb_bench.py --db "env PYTHONPATH=/tmp/old python -m moosdb_py.moosdb --port {port}" \
+        --label before --db "python -m moosdb_py.moosdb --port {port}" --label after
 
 Load comes from raw-socket clients with pre-encoded packets (100 notifies each, as a busy
 C++ async client sends them) in separate processes, so the DB, not the clients, is measured.
@@ -306,17 +308,18 @@ def _label(template: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--db", action="append", help="DB command line with {port}; repeat to compare (default: moosdb)")
+    p.add_argument("--label", action="append", default=[], help="column heading of each --db, in order")
     p.add_argument("--seconds", type=float, default=2.0, help="measuring window per throughput figure")
     p.add_argument("--idle", type=int, default=1000, help="idle clients to connect")
     args = p.parse_args(argv)
     templates = args.db or [DEFAULT_DB]
-    results = {t: bench(t, args.seconds, args.idle) for t in templates}
-    width = max(len(k) for r in results.values() for k in r)
-    labels = [_label(t) for t in templates]
+    labels = args.label + [_label(t) for t in templates[len(args.label):]]
+    results = [bench(t, args.seconds, args.idle) for t in templates]   # a --db may repeat (before/after runs)
+    width = max(len(k) for r in results for k in r)
     print(f"{'':<{width}}  " + "  ".join(f"{label[:18]:>18}" for label in labels))
-    for key in next(iter(results.values())):
-        print(f"{key:<{width}}  " + "  ".join(f"{results[t][key]:>18,.3f}" if isinstance(results[t][key], float)
-                                             else f"{results[t][key]:>18}" for t in templates))
+    for key in results[0]:
+        print(f"{key:<{width}}  " + "  ".join(f"{r[key]:>18,.3f}" if isinstance(r[key], float) else f"{r[key]:>18}"
+                                             for r in results))
     return 0
 
 

@@ -16,9 +16,9 @@ import time
 import numpy as np
 
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.marine_pid import PIDEngine, PIDParams
-from oilspill_moos.node_reporter import NodeReportBuilder, ReporterParams
-from oilspill_moos.sim_marine import MarineModel, SimParams
+from oilspill_moos.marine.marine_pid import PIDEngine, PIDParams
+from oilspill_moos.marine.node_reporter import NodeReportBuilder, ReporterParams
+from oilspill_moos.marine.sim_marine import MarineModel, SimParams
 
 ALPHA_SIM = {"start_pos": "0,-20,180,0", "prefix": "NAV", "turn_rate": "95",
              "thrust_map": "0:0, 20:1, 40:2, 60:3, 80:4, 100:5", "turn_spd_loss": "0.4"}

@@ -24,8 +24,10 @@ from pathlib import Path
 import websockets
 
 from moosdb_py.client import MOOSClient
-from oilspill_moos.demo import free_port
-from oilspill_moos.viewer.browser import Browser, find_chromium
+from moosdb_py.ports import free_port
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from browser import Browser, find_chromium  # noqa: E402  (the tests' Chromium driver)
 
 BIN = Path(sys.executable).parent
 

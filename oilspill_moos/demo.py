@@ -4,8 +4,10 @@ Launches missions/oilspill (a shoreside and N vehicle communities, one pAntler
 each), pushes a predicted boundary to pPathAssign over TCP (from the forecaster
 when its trained weights are present, else the outline shipped with the
 mission), follows the fleet through STATION-KEEPING -> STARTING-POSITION ->
-OIL-PATH, pushes a second boundary that re-plans, and leaves a report in
-demo-output/: tracks.png (tracks, boundaries and loops) and timeline.json.
+OIL-PATH, pushes a second boundary that re-plans, and leaves a report in a folder of its own,
+demo-output/<UTC time>/ (demo-output/latest names the newest): tracks.png (tracks, boundaries and
+loops), timeline.json and the mission's logs in run/. While the vessels transit it prints the
+distance they have to go and when they should arrive.
 
     python -m oilspill_moos.demo [--vehicles N] [--warp W] [--out DIR] [--loop-time S]
 """
@@ -15,278 +17,27 @@ import argparse
 import asyncio
 import json
 import os
-import signal
-import socket
-import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import shapely
 
-from moosdb_py.client import MOOSClient
-from moosdb_py.ports import free_port
-from moosdb_py.nsplug import preprocess
+from moosdb_py.formats import FormatError, parse_number, parse_pairs
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.path_assign import (
+from oilspill_moos.oilspill_mission import MISSION_DIR, ORIGIN, STANDOFF, Observer, OilspillMission, wait_for
+from oilspill_moos.response.path_assign import (
     OIL_PATH,
     STARTING_POSITION,
     STATION_KEEPING,
     parse_boundary_line,
-    parse_polygon_spec,
-    parse_report,
 )
-from oilspill_moos.planner import containment_region
+from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
-REPO = Path(__file__).resolve().parents[1]
-MISSION_DIR = REPO / "missions" / "oilspill"
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
-NAMES = ("abe", "ben", "cal", "deb", "eve", "fin", "gil", "hal", "ike", "jan", "kim", "lou")
-VEHICLE_SPACING = 30.0  # metres between vehicles on the start line south of the spill
-ORIGIN = (28.736667, -88.387222)  # LatOrigin/LongOrigin of missions/oilspill/plugs.moos
-STANDOFF = 30.0
-
-
-def vehicle_names(count: int) -> list[str]:
-    if count < 1:
-        raise ValueError(f"need at least one vehicle, got {count}")
-    return list(NAMES[:count]) if count <= len(NAMES) else [f"v{i:02d}" for i in range(1, count + 1)]
-
-
-@dataclass
-class Community:
-    name: str
-    moos_port: int
-    defines: dict[str, str]
-    process: subprocess.Popen | None = None
-
-    @property
-    def moos_file(self) -> str:
-        return f"targ_{self.name}.moos"
-
-
-@dataclass
-class OilspillMission:
-    """missions/oilspill expanded into `folder` on free loopback ports, one pAntler per community."""
-
-    folder: Path
-    vehicles: int = 3
-    warp: float = 10.0
-    one_process: bool = True
-    standoff: float = STANDOFF
-    node_timeout: float = 30.0
-    starts: list[tuple[float, float]] | None = None  # vehicle start positions; default: a line south of 0,0
-    operating_radius: float = 20000.0
-    extra: dict[str, str] = field(default_factory=dict)  # more nsplug macros for every community
-
-    def __post_init__(self):
-        self.folder = Path(self.folder).resolve()
-        self.boundary_port = free_port()
-        shore_pshare = free_port(socket.SOCK_DGRAM)
-        names = vehicle_names(self.vehicles)
-        common = {"WARP": f"{self.warp:g}", "LOG_PATH": str(self.folder / "logs") + "/", **self.extra}
-        self.shoreside = Community("shoreside", free_port(), {
-            **common, "PSHARE_PORT": str(shore_pshare), "BOUNDARY_PORT": str(self.boundary_port),
-            "FLEET": ":".join(names), "STANDOFF": f"{self.standoff:g}", "NODE_TIMEOUT": f"{self.node_timeout:g}",
-            "OPERATING_RADIUS": f"{self.operating_radius:g}"})
-        self.shoreside.defines["MOOS_PORT"] = str(self.shoreside.moos_port)
-        self.fleet: dict[str, Community] = {}
-        for i, name in enumerate(names):
-            x, y = self.starts[i] if self.starts else ((i - (len(names) - 1) / 2) * VEHICLE_SPACING, 0.0)
-            port = free_port()
-            self.fleet[name] = Community(name, port, {
-                **common, "VNAME": name, "MOOS_PORT": str(port), "PSHARE_PORT": str(free_port(socket.SOCK_DGRAM)),
-                "SHORE_IP": "localhost", "SHORE_PSHARE": str(shore_pshare), "START_POS": f"{x:.1f},{y:.1f}"})
-
-    @property
-    def communities(self) -> list[Community]:
-        return [self.shoreside, *self.fleet.values()]
-
-    def generate(self) -> list[Path]:
-        """Write targ_*.moos / targ_*.bhv; raises MissionFileError naming the template line."""
-        self.folder.mkdir(parents=True, exist_ok=True)
-        (self.folder / "logs").mkdir(exist_ok=True)
-        files = []
-        for community in self.communities:
-            template = "meta_shoreside.moos" if community is self.shoreside else "meta_vehicle.moos"
-            _expand(MISSION_DIR / template, community.defines, self.folder / community.moos_file)
-            if community is not self.shoreside:
-                _expand(MISSION_DIR / "meta_vehicle.bhv", community.defines, self.folder / f"targ_{community.name}.bhv")
-            files.append(self.folder / community.moos_file)
-        return files
-
-    def start(self) -> None:
-        self.generate()
-        for community in self.communities:
-            self._launch(community)
-
-    def _launch(self, community: Community) -> None:
-        args = ["pAntler", community.moos_file, "--quiet"] + (["--one-process"] if self.one_process else [])
-        log = open(self.folder / "logs" / f"antler_{community.name}.txt", "ab")
-        community.process = subprocess.Popen([str(Path(sys.executable).parent / args[0]), *args[1:]],
-                                             cwd=self.folder, stdout=log, stderr=subprocess.STDOUT,
-                                             start_new_session=True)
-        log.close()
-
-    def stop_community(self, name: str, timeout: float = 10.0) -> None:
-        """Stop one community (pAntler stops its apps): a vehicle dropping out, or the end of the run."""
-        community = self.shoreside if name == "shoreside" else self.fleet[name]
-        process = community.process
-        if process is None or process.poll() is not None:
-            return
-        os.killpg(process.pid, signal.SIGTERM)
-        try:
-            process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-    def restart_community(self, name: str) -> None:
-        self._launch(self.shoreside if name == "shoreside" else self.fleet[name])
-
-    def stop(self, timeout: float = 10.0) -> None:
-        """Every community at once (each pAntler stops its own apps), then wait for them all."""
-        running = [c.process for c in self.communities if c.process is not None and c.process.poll() is None]
-        for process in running:
-            os.killpg(process.pid, signal.SIGTERM)
-        deadline = time.monotonic() + timeout
-        for process in running:
-            try:
-                process.wait(timeout=max(deadline - time.monotonic(), 0.1))
-            except subprocess.TimeoutExpired:
-                os.killpg(process.pid, signal.SIGKILL)
-                process.wait()
-
-    def dead(self) -> list[str]:
-        """Communities whose pAntler ended by itself (a crash the caller should report)."""
-        return [c.name for c in self.communities if c.process is not None and c.process.poll() is not None]
-
-    def alog(self, name: str) -> Path:
-        return self.folder / "logs" / f"LOG_{name.upper()}" / f"LOG_{name.upper()}.alog"
-
-    def __enter__(self):
-        self.start()
-        return self
-
-    def __exit__(self, *exc):
-        self.stop()
-
-
-def _expand(template: Path, defines: dict[str, str], target: Path) -> None:
-    target.write_text("".join(line.text + "\n" for line in preprocess(template, defines)))
-
-
-# ---- watching the shoreside --------------------------------------------------------------
-
-@dataclass
-class Observer:
-    """A MOOS client on the shoreside DB that keeps what the timeline and the report need."""
-
-    host: str
-    port: int
-    warp: float
-    events: list[dict] = field(default_factory=list)
-    tracks: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
-    boundaries: list[list[tuple[float, float]]] = field(default_factory=list)
-    regions: list[list[tuple[float, float]]] = field(default_factory=list)
-    loops: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
-    phase: str = ""
-    phase_count: dict[str, int] = field(default_factory=dict)
-    dropped: list[str] = field(default_factory=list)
-    modes: dict[str, str] = field(default_factory=dict)
-    status: str = ""
-    moos_now: float = 0.0
-    started: float = field(default_factory=time.monotonic)
-
-    def __post_init__(self):
-        self.client = MOOSClient("uDemoObserver", self.host, self.port, on_mail=self.on_mail,
-                                 on_connect=self.on_connect, time_warp=self.warp)
-        self.t0 = self.client.moos_time()  # mission seconds count from here, on every process's warped clock
-
-    def on_connect(self) -> None:
-        for key in ("OILSPILL_PHASE", "OILSPILL_STATUS", "OILSPILL_BOUNDARY", "VIEW_POLYGON", "NODE_REPORT",
-                    "OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
-            self.client.register(key)
-        self.client.register_wildcard("OIL_PATH_UPDATES_*")
-
-    def on_mail(self, mail) -> None:
-        for msg in mail:
-            self.moos_now = max(self.moos_now, msg.time)
-            value = str(msg.value)
-            if msg.key == "NODE_REPORT":
-                report = parse_report(value)
-                name = report.get("name", msg.community).lower()
-                self.modes[name] = report.get("mode", "")
-                try:
-                    self.tracks.setdefault(name, []).append((msg.time, float(report["x"]), float(report["y"])))
-                except (KeyError, ValueError):
-                    continue
-            elif msg.key == "OILSPILL_PHASE":
-                self.phase = value
-                self.phase_count[value] = self.phase_count.get(value, 0) + 1
-                self.note("phase", value, msg.time)
-            elif msg.key == "OILSPILL_STATUS":
-                self.status = value
-            elif msg.key == "OILSPILL_BOUNDARY":
-                self.boundaries.append(parse_polygon_spec(value))
-            elif msg.key == "VIEW_POLYGON" and "label=standoff" in value:
-                self.regions.append(parse_polygon_spec(value))
-            elif msg.key.startswith("OIL_PATH_UPDATES_"):
-                points = value.split("#")[0].partition("=")[2]
-                self.loops[msg.key[len("OIL_PATH_UPDATES_"):].lower()] = parse_polygon_spec(f"pts={{{points}}}")
-            elif msg.key in ("OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
-                if msg.key == "OILSPILL_DROPPED":
-                    self.dropped.append(value)
-                self.note(msg.key.split("_")[1].lower(), value, msg.time)
-
-    def note(self, kind: str, what: str, moos_time: float | None = None) -> dict:
-        """An event stamped `moos_time` (a message's own stamp) or now on the observer's warped clock."""
-        stamp = self.client.moos_time() if moos_time is None else moos_time
-        event = {"event": kind, "what": what, "moos_s": round(stamp - self.t0, 2),
-                 "wall_s": round(time.monotonic() - self.started, 2)}
-        self.events.append(event)
-        print(f"[{event['wall_s']:7.1f} s wall | {event['moos_s']:8.1f} s mission] {kind:<8} {what}", flush=True)
-        return event
-
-    def phase_event(self, phase: str, after: int) -> int | None:
-        """Index of the first `phase` change noted after event `after`."""
-        return next((i for i, e in enumerate(self.events) if i > after and e["event"] == "phase"
-                     and e["what"] == phase), None)
-
-    def vehicles_seen(self) -> set[str]:
-        return set(self.tracks)
-
-    def deployed(self) -> set[str]:
-        return {name for name, mode in self.modes.items() if "ACTIVE" in mode and "INACTIVE" not in mode}
-
-    async def deploy(self, fleet, timeout: float, mission: "OilspillMission | None" = None) -> None:
-        """What pMarineViewer's DEPLOY button does, repeated until every vehicle reports an active mode
-        (the shore broker sets up its bridges to a new vehicle only every few seconds)."""
-        deadline = time.monotonic() + timeout
-        while not self.deployed() >= set(fleet):
-            self.client.notify("DEPLOY_ALL", "true")
-            self.client.notify("MOOS_MANUAL_OVERRIDE_ALL", "false")
-            await wait_for(lambda: self.deployed() >= set(fleet), min(1.0, max(deadline - time.monotonic(), 0.01)),
-                           "every vehicle deployed", mission, quiet=time.monotonic() < deadline)
-
-
-async def wait_for(predicate, timeout: float, what: str, mission: OilspillMission | None = None,
-                   quiet: bool = False) -> None:
-    """Poll until `predicate()` holds; fail naming `what` (and any community that died), or with
-    `quiet` just return at the deadline."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if mission is not None and mission.dead():
-            raise RuntimeError(f"while waiting for {what}: {', '.join(mission.dead())} stopped (see logs/antler_*.txt)")
-        if time.monotonic() > deadline:
-            if quiet:
-                return
-            raise TimeoutError(f"{what}: not within {timeout:.0f} s")
-        await asyncio.sleep(0.05)
 
 
 def shipped_boundaries() -> list[bytes]:
@@ -341,12 +92,14 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
     marks = {}
     for phase in (STATION_KEEPING, STARTING_POSITION, OIL_PATH):   # each after the one before, in this cycle
         await wait_for(lambda: observer.phase_event(phase, index) is not None, timeout, f"cycle {number}: {phase}",
-                       mission)
+                       mission, progress=lambda: observer.say(*waiting_line(observer, phase)))
         index = observer.phase_event(phase, index)
         marks[phase] = observer.events[index]["moos_s"]
-    horizon = parse_report(observer.status).get("horizon")
+    horizon = status_horizon(observer.status)
     on_loop = observer.moos_now
-    await wait_for(lambda: observer.moos_now - on_loop >= loop_time, timeout, f"cycle {number}: looping", mission)
+    await wait_for(lambda: observer.moos_now - on_loop >= loop_time, timeout, f"cycle {number}: looping", mission,
+                   progress=lambda: observer.say("looping", f"{observer.moos_now - on_loop:.0f} of {loop_time:g} s "
+                                                            "of containment loops watched"))
     looped = observer.note("looping", f"{loop_time:g} s of containment loops")
     return {"boundary": number, "lines": len(lines), "seq": seq, "horizon_h": horizon,
             "pushed_moos_s": pushed["moos_s"], **{f"{phase.lower().replace('-', '_')}_moos_s": mark
@@ -355,6 +108,51 @@ async def one_cycle(number: int, lines: list[bytes], pusher, observer: Observer,
             "station_keeping_s": round(marks[STARTING_POSITION] - marks[STATION_KEEPING], 2),
             "transit_s": round(marks[OIL_PATH] - marks[STARTING_POSITION], 2),
             "push_to_loop_s": round(marks[OIL_PATH] - pushed["moos_s"], 2)}
+
+
+def status_horizon(status: str) -> float | None:
+    """The forecast horizon (hours) of pPathAssign's OILSPILL_STATUS, a number; None before any forecast
+    (horizon=-1) or without one."""
+    try:
+        horizon = parse_number(parse_pairs(status).get("horizon", "-1"))
+    except FormatError:
+        return None
+    return horizon if horizon >= 0 else None
+
+
+def transit_line(positions: dict[str, tuple[float, float]], routes: dict[str, list[tuple[float, float]]],
+                 speeds: dict[str, float], arrived: set[str]) -> str | None:
+    """How far the fleet has still to go along its routes to the starting positions and when the last
+    vehicle should get there (mission seconds at its reported speed); None before any route. The
+    `arrived` vehicles hold station at their starting positions, waiting for the others."""
+    left = {}
+    for name, route in routes.items():
+        if name in positions and route:
+            here = shapely.Point(positions[name])
+            line = shapely.LineString(route) if len(route) > 1 else None
+            left[name] = (line.length - line.project(here) + line.distance(here) if line is not None
+                          and line.length > 1e-6 else here.distance(shapely.Point(route[-1])))
+    if not left:
+        return None
+    going = {name: metres for name, metres in left.items() if name not in arrived}
+    arrived = f"{len(left) - len(going)} of {len(left)} at their starting positions"
+    if not going:
+        return arrived
+    farthest = max(going, key=going.get)
+    etas = [going[n] / speeds[n] for n in going if speeds.get(n, 0.0) > 0.1]
+    eta = f"ETA {max(etas):.0f} s mission time" if len(etas) == len(going) else "ETA unknown (a vehicle is stopped)"
+    return f"{going[farthest]:.0f} m to go ({farthest} farthest; {arrived}), {eta}"
+
+
+def waiting_line(observer: Observer, phase: str) -> tuple[str, str]:
+    """The progress line while the demo waits for `phase`: distance and ETA while the fleet transits."""
+    if phase == OIL_PATH:
+        positions = {name: track[-1][1:] for name, track in observer.tracks.items()}
+        holding = {name for name, mode in observer.modes.items() if mode.endswith(STATION_KEEPING)}
+        line = transit_line(positions, observer.routes, observer.speeds, holding)
+        if line is not None:
+            return "transit", line
+    return "waiting", f"for {phase} (fleet phase {observer.phase or 'none yet'})"
 
 
 def timeline_problems(report: dict, mission_s: float) -> list[str]:
@@ -464,20 +262,31 @@ def stations_around(cycles: list[list[bytes]], vehicles: int, standoff: float) -
     return [tuple(ring.interpolate(ring.length * (i + 0.5) / vehicles).coords[0]) for i in range(vehicles)]
 
 
-def write_report(out: Path, observer: Observer, report: dict) -> None:
-    import matplotlib
+def metre_axes(ax) -> None:
+    """Axes in m, or km past 5 km across (forecast outlines are tens of km wide), with few enough
+    ticks that their labels never run into each other."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
+    span = max(hi - lo for lo, hi in (ax.get_xlim(), ax.get_ylim()))
+    unit, scale = ("km", 1000.0) if span >= 5000 else ("m", 1.0)
+    for axis, what in ((ax.xaxis, f"x ({unit} east of LongOrigin)"), (ax.yaxis, f"y ({unit} north of LatOrigin)")):
+        axis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / scale:g}"))
+        axis.set_label_text(what)
 
-    out.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(8, 8))
+
+def draw_tracks(observer: Observer, report: dict):
+    """tracks.png's figure: the boundaries in force, the stand-off loops, each vehicle's track."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 8))
+    ax = fig.subplots()
     boundaries = list(dict.fromkeys(tuple(poly) for poly in observer.boundaries))  # repeats drawn once
     horizons = [c.get("horizon_h") for c in report["cycles"]] if len(boundaries) == len(report["cycles"]) else []
     shades = ("dimgray", "tab:purple", "tab:olive", "tab:cyan")
     for i, poly in enumerate(boundaries):
         xs, ys = zip(*(poly + poly[:1]))
-        what = f" ({horizons[i]} h forecast)" if horizons else ""
+        what = f" ({horizons[i]:g} h forecast)" if horizons and horizons[i] is not None else ""
         ax.fill(xs, ys, color=shades[i % len(shades)], alpha=0.2, label=f"boundary in force {i + 1}{what}")
     for i, poly in enumerate(dict.fromkeys(tuple(poly) for poly in observer.regions)):
         poly = list(poly)
@@ -491,13 +300,36 @@ def write_report(out: Path, observer: Observer, report: dict) -> None:
             lx, ly = zip(*observer.loops[name][:1])
             ax.plot(lx, ly, "*", ms=12, color=line.get_color())
     ax.set_aspect("equal")
-    ax.set_xlabel("x (m east of LongOrigin)")
-    ax.set_ylabel("y (m north of LatOrigin)")
-    ax.set_title("oil-spill containment: tracks (o = start), boundaries in force and loops (* = last loop start)")
+    metre_axes(ax)
+    ax.set_title("oil-spill containment: tracks (o = start), boundaries in force\nand loops (* = last loop start)")
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
-    fig.savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    return fig
+
+
+def write_report(out: Path, observer: Observer, report: dict) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    draw_tracks(observer, report).savefig(out / "tracks.png", dpi=110, bbox_inches="tight")
     (out / "timeline.json").write_text(json.dumps(report, indent=2))
+
+
+def new_run_folder(base: Path, stamp: str | None = None) -> Path:
+    """A fresh folder for one run, `base/<UTC time>` (`-2`, `-3`... if that exists), and `base/latest`
+    pointed at it: a report never lies beside an older run's files."""
+    stamp = stamp or time.strftime("%Y-%m-%dT%H-%M-%SZ", time.gmtime())
+    base.mkdir(parents=True, exist_ok=True)
+    run, n = base / stamp, 1
+    while True:
+        try:
+            run.mkdir()
+            break
+        except FileExistsError:
+            n += 1
+            run = base / f"{stamp}-{n}"
+    link = base / f".latest-{os.getpid()}"
+    link.unlink(missing_ok=True)
+    link.symlink_to(run.name, target_is_directory=True)
+    os.replace(link, base / "latest")   # atomic: `latest` always names a whole run
+    return run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -505,7 +337,9 @@ def main(argv: list[str] | None = None) -> int:
                                      epilog=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--vehicles", type=int, default=3, help="fleet size (default 3)")
     parser.add_argument("--warp", type=float, default=10.0, help="MOOSTimeWarp (default 10)")
-    parser.add_argument("--out", type=Path, default=Path("demo-output"), help="report folder (default demo-output)")
+    parser.add_argument("--out", type=Path, default=Path("demo-output"),
+                        help="reports go to OUT/<UTC time of the run>/, OUT/latest names the newest "
+                             "(default demo-output)")
     parser.add_argument("--loop-time", type=float, default=120.0,
                         help="mission seconds to watch the loops before the next boundary (default 120)")
     parser.add_argument("--timeout", type=float, default=180.0, help="wall seconds allowed per step (default 180)")
@@ -521,11 +355,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.warp <= 0 or args.vehicles < 1:
         parser.error("--warp must be > 0 and --vehicles >= 1")
+    out = new_run_folder(args.out)
+    print(f"demo: this run's report goes to {out}/ ({args.out / 'latest'} names it)", flush=True)
     if args.feedback:
         from oilspill_moos import feedback_demo
 
         try:
-            return feedback_demo.main(args.out, args.vehicles, args.warp, args.loop_time, args.timeout)
+            return feedback_demo.main(out, args.vehicles, args.warp, args.loop_time, args.timeout)
         except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
             print(f"demo: {exc}", file=sys.stderr)
             return 1
@@ -535,7 +371,7 @@ def main(argv: list[str] | None = None) -> int:
         use = args.source == "forecaster" or (weights is not None and forecaster_ready(weights))
         cycles, origin = boundary_source(weights if use else None, args.timeout)
         starts = stations_around(cycles, args.vehicles, STANDOFF) if origin.startswith("forecaster") else None
-        report = asyncio.run(run_demo(args.out, args.vehicles, args.warp, args.loop_time, args.timeout,
+        report = asyncio.run(run_demo(out, args.vehicles, args.warp, args.loop_time, args.timeout,
                                       cycles, origin, starts, args.viewer))
     except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
         print(f"demo: {exc}", file=sys.stderr)
@@ -543,8 +379,8 @@ def main(argv: list[str] | None = None) -> int:
     for cycle in report["cycles"]:
         print(f"boundary {cycle['boundary']}: push -> all on the loop in {cycle['push_to_loop_s']:.1f} mission s "
               f"(station-keeping {cycle['station_keeping_s']:.1f} s, transit {cycle['transit_s']:.1f} s)")
-    print(f"demo: done in {time.monotonic() - started:.0f} s; report in {args.out}/ (tracks.png, timeline.json)")
-    run = args.out / "run"
+    print(f"demo: done in {time.monotonic() - started:.0f} s; report in {out}/ (tracks.png, timeline.json)")
+    run = out / "run"
     print(f"replay it in the browser: pMarineViewer {run / 'targ_shoreside.moos'} "
           f"--replay={run / 'logs' / 'LOG_SHORESIDE' / 'LOG_SHORESIDE.alog'}")
     return 0

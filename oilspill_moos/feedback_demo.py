@@ -27,14 +27,14 @@ import shapely
 from shapely.geometry import Polygon
 
 from moosdb_py.client import MOOSClient
-from oilspill_moos.demo import ORIGIN, Observer, OilspillMission, wait_for
+from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
 from oilspill_moos.forecaster.assimilate import ingest, read_feedback
 from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.features import to_plane
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oil_fusion import ScenarioMap
-from oilspill_moos.path_assign import OIL_PATH, format_points, parse_report
+from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.path_assign import OIL_PATH, format_points, parse_report
 
 SCENARIO = "strong_forcing-2214"   # held out from the shipped weights' training
 MAP_SCALE = 0.015                  # its ~8 km slick becomes ~120 m: a kayak loop of a minute or two

@@ -18,7 +18,9 @@ from oilspill_moos.app_config import config_float, config_str, read_params, warn
 from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 from oilspill_moos.viewer.model import (
+    REPORT_KEYS,
     SUBSCRIPTIONS,
+    VIEW_KINDS,
     WILDCARDS,
     Button,
     Scene,
@@ -107,11 +109,20 @@ def warn_config(config, name: str) -> None:
     warn_unhandled(config, KNOWN | set(ignored))
 
 
+def runs_a_spill(mission, config) -> bool:
+    """An oil-spill mission: its file runs pPathAssign (or the viewer is told where its boundary
+    server is). Otherwise (s1_alpha, ...) the page shows no spill key and no RE-PUSH BOUNDARY."""
+    if config is not None and config.get("boundary_port") is not None:
+        return True
+    return mission is not None and mission.process_config("pPathAssign") is not None
+
+
 def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mode: str, t0: float = 0.0,
-               actions: list[Button] = ()) -> dict:
+               actions: list[Button] = (), spill: bool = True) -> dict:
     """What the page needs besides the picture: buttons, the time its mission clock counts from (`t0`),
-    and a linear lat/long readout about the origin (derivatives from pyproj over +-1 km: metre-accurate
-    within a few km, which is where a spill is)."""
+    whether it is an oil-spill mission (`spill`), and a linear lat/long readout and grid about the
+    origin (derivatives from pyproj over +-1 km: metre-accurate within a few km, which is where a
+    spill is)."""
     origin = None
     if grid is not None:
         lat0, lon0 = (float(v) for v in grid.to_latlon(0.0, 0.0))
@@ -119,8 +130,8 @@ def page_setup(grid: LocalGrid | None, buttons: list[Button], community: str, mo
         lat_n, lon_n = (float(v) for v in grid.to_latlon(0.0, 1000.0))
         origin = {"lat": lat0, "lon": lon0, "dlat_dx": (lat_e - lat0) / 1000, "dlon_dx": (lon_e - lon0) / 1000,
                   "dlat_dy": (lat_n - lat0) / 1000, "dlon_dy": (lon_n - lon0) / 1000}
-    return {"mode": mode, "community": community, "origin": origin, "t0": t0,
-            "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" else []),
+    return {"mode": mode, "community": community, "origin": origin, "t0": t0, "spill": spill,
+            "buttons": [b.label for b in buttons] + (["RE-PUSH BOUNDARY"] if mode == "live" and spill else []),
             "actions": [a.label for a in actions]}
 
 
@@ -195,7 +206,8 @@ PUBLICATIONS:
         self.scene = Scene(trail_length=self.settings["trail_length"], grid=mission_grid(self.mission))
         self.actions: list[Button] = self.settings["actions"]
         self.setup = page_setup(self.scene.grid, self.buttons, self.mission.community if self.mission else "", "live",
-                                self.start_time, self.actions)
+                                self.start_time, self.actions, runs_a_spill(self.mission, self.config))
+        self.db_up = False
 
     def on_connect(self) -> None:
         for key in SUBSCRIPTIONS:
@@ -209,6 +221,17 @@ PUBLICATIONS:
                 self.server.queue(self.scene.apply(msg.key, msg.value, msg.time, msg.community))
             except ViewError as exc:
                 self.server.queue([self.scene.note("error", f"{msg.key} from {msg.sender}: {exc}", msg.time)])
+
+    def iterate(self) -> None:
+        """Tell the page when the MOOSDB goes away (the mission ended: the last picture stays) and
+        when it answers again."""
+        up = self.client.connected
+        if up != self.db_up:
+            where = f"the MOOSDB at {self.client.host}:{self.client.port}"
+            now = self.moos_time()
+            self.server.queue(self.scene.resume(f"{where} answers again: live", now) if up
+                              else self.scene.end(f"{where} went away", now))
+            self.db_up = up
 
     def snapshot(self) -> dict:
         return {**self.setup, **self.scene.snapshot(), "time": self.moos_time()}
@@ -258,7 +281,8 @@ PUBLICATIONS:
             await super().run_async()
         finally:
             flusher.cancel()
-            self.server.close()
+            self.server.queue(self.scene.end(f"{self.name} stopped", self.moos_time()))
+            await self.server.shut_down({"time": self.moos_time()})
 
     @classmethod
     def main(cls, argv: list[str] | None = None) -> int:
@@ -287,6 +311,8 @@ class Replay:
         self.entries = [e for e in iter_alog(self.path) if not isinstance(e, float)
                         and (e.key in wanted or e.key.startswith(prefixes))]
         self.times = [e.time for e in self.entries]
+        # every subscription but the reports and VIEW_* markers is the spill's
+        self.spill = any(e.key not in REPORT_KEYS and e.key not in VIEW_KINDS for e in self.entries)
         self.end = self.times[-1] if self.times else 0.0
         self.t, self.speed, self.playing = 0.0, 1.0, True
         self.scene, self.applied = self._fresh(), 0
@@ -382,7 +408,8 @@ def replay_main(alog: Path, rest: list[str], port: int | None) -> int:
     except (MissionFileError, AlogFormatError, ValueError, OSError) as exc:
         print(f"pMarineViewer: {exc}", file=sys.stderr)
         return 1
-    setup = page_setup(grid, [], mission.community if mission else "", "replay")
+    setup = page_setup(grid, [], mission.community if mission else "", "replay",
+                       spill=replay.spill or runs_a_spill(mission, block))
 
     async def runner():
         stop = asyncio.Event()

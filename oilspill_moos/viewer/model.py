@@ -17,13 +17,15 @@ import shapely
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
 from oilspill_moos.app_config import parse_float, parse_pairs
-from oilspill_moos.oil_fusion import parse_observation
+from oilspill_moos.response.oil_fusion import parse_observation
 
 VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
 # Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).
 NOTE_KEYS = {"OILSPILL_WARNING": "warning", "OILSPILL_DROPPED": "dropped", "OILSPILL_REJOINED": "rejoined",
              "OIL_FUSION_WARNING": "warning"}
-SUBSCRIPTIONS = ("NODE_REPORT", *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_FORECAST", "OILSPILL_STATUS",
+# NODE_REPORT_LOCAL: a single-vehicle mission's own pNodeReporter (no shoreside to bridge it to NODE_REPORT).
+REPORT_KEYS = ("NODE_REPORT", "NODE_REPORT_LOCAL")
+SUBSCRIPTIONS = (*REPORT_KEYS, *VIEW_KINDS, "OILSPILL_BOUNDARY", "OILSPILL_FORECAST", "OILSPILL_STATUS",
                  *NOTE_KEYS, "OIL_OBSERVATION", "OIL_OBSERVED_EDGE", "OIL_FUSION_SKILL")
 WILDCARDS = ("OILSPILL_PHASE*", "STARTING_POSITION_UPDATES_*", "OIL_PATH_UPDATES_*")
 
@@ -207,6 +209,14 @@ def _points_update(text: str, what: str) -> list[list[float]]:
         raise ViewError(f"{what} {text!r}: {exc}") from None
 
 
+def _fields(key: str, text: str) -> list[list[str]]:
+    """A `key=value` status line as [key, value] rows, for the page to show one field a row."""
+    try:
+        return [list(pair) for pair in parse_pairs(text).items()]
+    except ValueError as exc:
+        raise ViewError(f"{key} {text[:80]!r}: {exc}") from None
+
+
 def _suffix(key: str, prefix: str) -> str:
     return key[len(prefix):].lstrip("_").lower()
 
@@ -307,12 +317,13 @@ class Scene:
     observations: deque = field(default_factory=lambda: deque(maxlen=1000))   # the vessels' oil samples
     observed_edge: list[list[float]] = field(default_factory=list)           # uFldOilFusion's flip points
     skill: str = ""
+    ended: str = ""                              # why the mission is over (the last picture stays)
 
     def apply(self, key: str, value, time: float, community: str = "") -> list[dict]:
         """One piece of mail -> the page updates it causes; raises ViewError on a string it cannot read."""
         text = value if isinstance(value, str) else f"{value:g}" if isinstance(value, float) else str(value)
-        if key == "NODE_REPORT":
-            return [self._report(parse_node_report(text, self.grid), time)]
+        if key in REPORT_KEYS:
+            return self._report(parse_node_report(text, self.grid), time)
         if key in VIEW_KINDS:
             marker = parse_view(key, text)
             if marker.active:
@@ -322,20 +333,28 @@ class Scene:
             return [marker.as_update()]
         if key == "OILSPILL_BOUNDARY":
             try:
-                self.boundary = parse_seglist(text).tolist()
+                boundary = parse_seglist(text).tolist()
             except GeometryError as exc:
                 raise ViewError(f"OILSPILL_BOUNDARY {text!r}: {exc}") from None
-            self.boundary_text = text
-            return [{"t": "boundary", "points": self.boundary, "label": _properties(text).get("label", "")}]
+            pushed = text != self.boundary_text
+            self.boundary, self.boundary_text = boundary, text
+            label = _properties(text).get("label", "")
+            return [{"t": "boundary", "points": self.boundary, "label": label},
+                    *([self.note("event", f"boundary in force: {label or 'pushed'}, {len(boundary)} vertices", time)]
+                      if pushed else [])]
         if key == "OILSPILL_FORECAST":
             forecast = parse_forecast(text)
-            if any(f.cycle != forecast.cycle for f in self.forecasts.values()):
+            fresh = not self.forecasts or any(f.cycle != forecast.cycle for f in self.forecasts.values())
+            if fresh:
                 self.forecasts = {}   # a new forecast: the horizons of the last one are stale
             self.forecasts[forecast.horizon_h] = forecast
-            return [{"t": "forecasts", "forecasts": self._forecast_updates()}]
+            return [{"t": "forecasts", "forecasts": self._forecast_updates()},
+                    *([self.note("event", f"forecast cycle {forecast.cycle} ({forecast.source or 'no source'})",
+                                 time)] if fresh else [])]
         if key == "OILSPILL_PHASE":
+            changed = text != self.phase
             self.phase = text
-            return [{"t": "phase", "phase": text}]
+            return [{"t": "phase", "phase": text}, *([self.note("phase", f"fleet phase {text}", time)] if changed else [])]
         if key.startswith("OILSPILL_PHASE_"):
             name = _suffix(key, "OILSPILL_PHASE")
             names = list(self.vehicles) if name == "all" else [name]
@@ -350,8 +369,9 @@ class Scene:
             self.loops[name] = _points_update(text, key)
             return [{"t": "loop", "name": name, "points": self.loops[name]}]
         if key == "OILSPILL_STATUS":
+            fields = _fields(key, text)
             self.status = text
-            return [{"t": "status", "text": text}]
+            return [{"t": "status", "text": text, "fields": fields}]
         if key == "OIL_OBSERVATION":
             try:
                 obs = parse_observation(text)
@@ -367,8 +387,9 @@ class Scene:
                 raise ViewError(f"OIL_OBSERVED_EDGE {text!r}: {exc}") from None
             return [{"t": "edge", "points": self.observed_edge}]
         if key == "OIL_FUSION_SKILL":
+            fields = _fields(key, text)
             self.skill = text
-            return [{"t": "skill", "text": text}]
+            return [{"t": "skill", "text": text, "fields": fields}]
         if key in NOTE_KEYS:
             return [self.note(NOTE_KEYS[key], text, time)]
         return []
@@ -379,13 +400,33 @@ class Scene:
         self.notes.append(entry)
         return entry
 
-    def _report(self, report: NodeReport, time: float) -> dict:
+    def end(self, why: str, time: float) -> list[dict]:
+        """The mission is over (its MOOSDB went away, or the viewer is stopping): the page says so and
+        keeps the last picture."""
+        if self.ended:
+            return []
+        self.ended = why
+        return [{"t": "ended", "text": why, "time": time}, self.note("ended", f"mission ended: {why}", time)]
+
+    def resume(self, why: str, time: float) -> list[dict]:
+        """The MOOSDB answers again (a mission started anew on its port)."""
+        if not self.ended:
+            return []
+        self.ended = ""
+        return [{"t": "resumed"}, self.note("event", why, time)]
+
+    def _report(self, report: NodeReport, time: float) -> list[dict]:
+        """A vehicle's report; its first one and every change of its helm phase go to the log."""
         vehicle = self.vehicles.get(report.name.lower())
+        notes = []
         if vehicle is None:
             vehicle = self.vehicles[report.name.lower()] = Vehicle(report, time, deque(maxlen=self.trail_length))
+            notes.append(self.note("event", f"{report.name} reporting, {report.phase or 'no helm mode'}", time))
+        elif report.phase != vehicle.report.phase:
+            notes.append(self.note("phase", f"{report.name}: {vehicle.report.phase or '-'} -> {report.phase}", time))
         vehicle.report, vehicle.seen = report, time
         vehicle.trail.append((report.x, report.y))
-        return vehicle.as_update()
+        return [vehicle.as_update(), *notes]
 
     def _forecast_updates(self) -> list[dict]:
         return [self.forecasts[h].as_update() for h in sorted(self.forecasts)]
@@ -397,5 +438,7 @@ class Scene:
                 "boundary": self.boundary, "forecasts": self._forecast_updates(), "starts": self.starts,
                 "loops": self.loops, "phase": self.phase,
                 "commanded": self.commanded, "status": self.status, "notes": list(self.notes),
+                "status_fields": _fields("OILSPILL_STATUS", self.status),
+                "skill_fields": _fields("OIL_FUSION_SKILL", self.skill),
                 "observations": list(self.observations), "observed_edge": self.observed_edge, "skill": self.skill,
-                "trail_length": self.trail_length}
+                "trail_length": self.trail_length, "ended": self.ended}

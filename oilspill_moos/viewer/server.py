@@ -66,6 +66,17 @@ class MapServer:
         if self._server is not None:
             self._server.close()
 
+    async def shut_down(self, clock: dict, timeout: float = 2.0) -> None:
+        """Send what is queued (the page's last word, e.g. "mission ended"), then close every page."""
+        self.flush(clock)
+        if self._server is not None:
+            self._server.close()
+            try:
+                async with asyncio.timeout(timeout):
+                    await self._server.wait_closed()
+            except TimeoutError:
+                log.warning("pages did not close within %.0f s", timeout)
+
     def _static(self, connection: ServerConnection, request: Request) -> Response | None:
         path = request.path.split("?")[0]
         if path == "/ws":

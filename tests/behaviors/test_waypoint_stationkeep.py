@@ -39,10 +39,14 @@ def test_geometry_strings():
 
 
 def test_lawnmower_pattern():
-    pts = parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20, swath=10")
-    assert pts[:4].tolist() == [[-20, 10], [-20, -10], [-10, -10], [-10, 10]] and len(pts) == 10
+    """MOOS-IvP's lawnmower (XYPatternBlock): rows east-west unless `rows=ns`; the entry is the outer
+    lane end nearest startx,starty (default 0,0); there is no `start=` corner key (it is ignored)."""
+    pts = parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20, swath=10, rows=ns")
+    assert pts[:4] == pytest.approx(np.array([[-20, 10], [-20, -10], [-10, -10], [-10, 10]])) and len(pts) == 10
+    rows_ew = parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20, swath=10")
+    assert rows_ew == pytest.approx(np.array([[20, 10], [-20, 10], [-20, 0], [20, 0], [20, -10], [-20, -10]]))
     turned = parse_seglist("lawnmower: x=5, y=5, width=40, height=20, swath=10, rows=ew, start=bl, degs=90")
-    assert turned[:2] == pytest.approx(np.array([[-5, 25], [-5, -15]]))
+    assert turned[:2] == pytest.approx(np.array([[-5, -15], [-5, 25]]))      # lanes north-south, entry nearest 0,0
     with pytest.raises(GeometryError):
         parse_seglist("format=lawnmower, x=0, y=0, width=40, height=20")
 

@@ -11,7 +11,7 @@ from moosdb_py.client import MOOSClient
 from moosdb_py.host_info import HostInfo, HostRecord, choose_host_ip, interface_addresses, iroutes_from_summary
 from moosdb_py.process_watch import ProcessWatch, ProcessWatchState, parse_mapping
 from moosdb_py.share import Share
-from oilspill_moos.node_broker import NodeBroker, NodeBrokerState
+from oilspill_moos.field.node_broker import NodeBroker, NodeBrokerState
 
 WARP = 10
 

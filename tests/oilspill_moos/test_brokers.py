@@ -5,14 +5,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oilspill_moos.node_broker import (
+from oilspill_moos.field.node_broker import (
     HostRecord,
     NodeBrokerState,
     node_bridges,
     parse_bridge,
     parse_shore_route,
 )
-from oilspill_moos.shore_broker import (
+from oilspill_moos.field.shore_broker import (
     ShoreBrokerState,
     expand_source,
     parse_output_summary,
@@ -226,8 +226,8 @@ def test_docs_say_what_the_apps_say():
     from pathlib import Path
 
     from moosdb_py.share import Share
-    from oilspill_moos.node_broker import NodeBroker
-    from oilspill_moos.shore_broker import ShoreBroker
+    from oilspill_moos.field.node_broker import NodeBroker
+    from oilspill_moos.field.shore_broker import ShoreBroker
 
     docs = Path(__file__).resolve().parents[2] / "docs"
     for app in (Share, NodeBroker, ShoreBroker):

@@ -10,8 +10,8 @@ from helpers import async_wait_until, start_moosdb
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg
 from moosdb_py.share import Share, encode_datagram
-from oilspill_moos.node_broker import NodeBroker
-from oilspill_moos.shore_broker import ShoreBroker
+from oilspill_moos.field.node_broker import NodeBroker
+from oilspill_moos.field.shore_broker import ShoreBroker
 
 WARP = 10  # pings every 5 s of MOOS time are 0.5 s here
 

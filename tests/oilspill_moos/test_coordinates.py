@@ -3,7 +3,7 @@ import asyncio
 
 from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
-from oilspill_moos.coordinates import Coordinates, coordinates_report
+from oilspill_moos.response.coordinates import Coordinates, coordinates_report
 
 
 def write_mission(tmp_path, port, block=""):

@@ -1,8 +1,9 @@
 """The demo's timeline: phase marks taken from pPathAssign's own stamps, and the sanity check it runs
 before writing the report (a cycle once came out with station_keeping_s ~1.8e10 and a negative transit)."""
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.demo import Observer, timeline_problems
-from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING
+from oilspill_moos.demo import timeline_problems
+from oilspill_moos.oilspill_mission import Observer
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING
 
 
 def cycle(number, push, sk, sp, op, looped):

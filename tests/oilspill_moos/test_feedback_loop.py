@@ -15,7 +15,7 @@ import threading
 import pytest
 from helpers import wait_until
 
-from oilspill_moos.demo import ORIGIN, Observer, OilspillMission
+from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission
 from oilspill_moos.feedback_demo import (MAP_SCALE, SCENARIO, STANDOFF, FusionWatch, boundary_line, feedback_defines,
                                          iou, mission_polygon, truth_at)
 from oilspill_moos.forecaster import operational
@@ -24,8 +24,8 @@ from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.forecaster.push import push_lines
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oil_fusion import ScenarioMap
-from oilspill_moos.path_assign import OIL_PATH, parse_report
+from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.path_assign import OIL_PATH, parse_report
 
 WARP = 12.0
 TIMEOUT = 40.0

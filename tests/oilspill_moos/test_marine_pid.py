@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oilspill_moos.marine_pid import PIDEngine, PIDGains, PIDParams, ScalarPID, angle180
+from oilspill_moos.marine.marine_pid import PIDEngine, PIDGains, PIDParams, ScalarPID, angle180
 
 ALPHA = {  # s1_alpha's pMarinePIDV22 block
     "depth_control": "false",

@@ -4,7 +4,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.node_reporter import (
+from oilspill_moos.marine.node_reporter import (
     NodeReportBuilder,
     PlatReportInput,
     ReporterParams,

@@ -9,7 +9,7 @@ from shapely.geometry import Point, box
 
 from oilspill_moos.forecaster.assimilate import fit_similarity, read_feedback
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oil_fusion import (Observation, ObservationCollector, ObservationRejected, ScenarioMap,
+from oilspill_moos.response.oil_fusion import (Observation, ObservationCollector, ObservationRejected, ScenarioMap,
                                       flip_points, format_observation, parse_observation, skill)
 
 SPILL = box(0, 0, 100, 100)

@@ -5,9 +5,9 @@ import json
 import pytest
 
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.oil_fusion import OilFusion
-from oilspill_moos.oil_sampler import OilSampler
-from oilspill_moos.oil_sensor import OilSensor
+from oilspill_moos.response.oil_fusion import OilFusion
+from oilspill_moos.response.oil_sampler import OilSampler
+from oilspill_moos.response.oil_sensor import OilSensor
 
 MISSION = """\
 ServerPort = 9000

@@ -5,8 +5,8 @@ from shapely.geometry import Point, box
 
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oil_fusion import ScenarioMap
-from oilspill_moos.oil_sensor import OilSensor, SensorModel, TruthSpill, parse_request
+from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.oil_sensor import OilSensor, SensorModel, TruthSpill, parse_request
 
 SLICK = box(0, 0, 100, 100)
 N = 4000

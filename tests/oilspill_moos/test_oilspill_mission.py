@@ -13,9 +13,9 @@ import pytest
 
 from helpers import wait_until
 from moosdb_py.alog import read_alog
-from oilspill_moos.demo import OilspillMission, Observer
+from oilspill_moos.oilspill_mission import OilspillMission, Observer
 from oilspill_moos.forecaster.push import push_lines
-from oilspill_moos.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec
 
 WARP = 10.0
 SPILL = "pts={-30,60:30,60:30,120:-30,120},label=test-spill\n"  # local metres, north of the start line
@@ -81,7 +81,7 @@ def test_vehicle_killed_in_oil_path_is_dropped_reshared_and_rejoins(running):
         assert push_lines([SPILL.encode()], port=mission.boundary_port)
         wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
     loops_before = observer.phase_count[OIL_PATH]
-    mission.stop_community("cal")
+    mission.stop(names=["cal"])
     wait_until(lambda: "cal" in observer.dropped, timeout=TIMEOUT)
     wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) > loops_before, timeout=TIMEOUT)
     wait_until(lambda: "planned=2" in observer.status, timeout=TIMEOUT)
@@ -93,7 +93,7 @@ def test_vehicle_killed_in_oil_path_is_dropped_reshared_and_rejoins(running):
 
     # cal comes back (a fresh community from its base): pPathAssign re-shares the loop among three
     loops_before = observer.phase_count[OIL_PATH]
-    mission.restart_community("cal")
+    mission.launch(mission.fleet["cal"])
     wait_until(lambda: any(e["event"] == "rejoined" and e["what"] == "cal" for e in observer.events), timeout=TIMEOUT)
     observer.modes.pop("cal", None)  # its old report still says OIL-PATH; the operator deploys it again
     asyncio.run_coroutine_threadsafe(observer.deploy(["cal"], TIMEOUT, mission), loop).result(TIMEOUT)
@@ -107,7 +107,7 @@ from behaviors.bhv_file import parse_bhv  # noqa: E402
 from behaviors.domain import IvPDomain, parse_domain_line  # noqa: E402
 from behaviors.helm import Helm  # noqa: E402
 from moosdb_py.nsplug import preprocess  # noqa: E402
-from oilspill_moos.demo import MISSION_DIR  # noqa: E402
+from oilspill_moos.oilspill_mission import MISSION_DIR  # noqa: E402
 
 
 class VehicleHelm:

@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import MultiPolygon, Polygon
 
-from oilspill_moos.planner import (
+from oilspill_moos.response.planner import (
     PlanError,
     bottleneck_assignment,
     choose_forecast,

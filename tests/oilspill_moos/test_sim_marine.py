@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oilspill_moos.sim_marine import MarineModel, NavState, SimParams, ThrustMap, parse_drift_vector
+from oilspill_moos.marine.sim_marine import MarineModel, NavState, SimParams, ThrustMap, parse_drift_vector
 
 ALPHA = {  # the s1_alpha uSimMarineV22 block, lower-case keys as ProcessConfig.get sees them
     "start_pos": "x=0, y=-20, heading=180, speed=0",

@@ -12,9 +12,9 @@ from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
 from moosdb_py.mission import read_mission
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.marine_pid import MarinePID, PIDParams
-from oilspill_moos.node_reporter import NodeReporter, ReporterParams
-from oilspill_moos.sim_marine import SimMarine, SimParams
+from oilspill_moos.marine.marine_pid import MarinePID, PIDParams
+from oilspill_moos.marine.node_reporter import NodeReporter, ReporterParams
+from oilspill_moos.marine.sim_marine import SimMarine, SimParams
 
 WARP = 10
 BLOCKS = {

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import websockets
 
-from helpers import async_wait_until
+from helpers import async_wait_until, start_moosdb
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import moos_time
 from moosdb_py.mission import read_mission
@@ -33,7 +33,8 @@ async def next_updates(page, predicate, timeout=10.0):
 def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server, tmp_path):
     mission = tmp_path / "shoreside.moos"
     mission.write_text(f"ServerPort = {moosdb_server.port}\nCommunity = shoreside\nMOOSTimeWarp = {WARP:g}\n"
-                       "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  action = MENU_KEY=hold # STATION_KEEP_ALL=true\n}\n")
+                       "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n  action = MENU_KEY=hold # STATION_KEEP_ALL=true\n}\n"
+                       "ProcessConfig = pPathAssign\n{\n  boundary_port = 9100\n}\n")   # an oil-spill shoreside
 
     async def scenario():
         app = MarineViewer(mission)
@@ -72,6 +73,46 @@ def test_live_viewer_shows_mail_and_pokes_with_warped_time(moosdb_server, tmp_pa
             app.stop()
             watcher.close()
             await asyncio.wait_for(asyncio.gather(*tasks, return_exceptions=True), 10)
+
+    asyncio.run(scenario())
+
+
+def test_single_vehicle_mission_shows_its_node_report_local_and_the_end_of_the_mission(tmp_path):
+    """A mission with no spill and no shoreside (s1_alpha-like): NODE_REPORT_LOCAL draws the vehicle, the
+    page gets no RE-PUSH BOUNDARY; when the MOOSDB goes away the page is told the mission ended, and a
+    page opened afterwards still gets the last picture."""
+    db = start_moosdb()
+    mission = tmp_path / "alpha.moos"
+    mission.write_text(f"ServerPort = {db.port}\nCommunity = alpha\nMOOSTimeWarp = {WARP:g}\n"
+                       "ProcessConfig = pMarineViewer\n{\n  http_port = 0\n}\n")
+
+    async def scenario():
+        app = MarineViewer(mission)
+        vehicle = MOOSClient("pNodeReporter", port=db.port, time_warp=WARP)
+        tasks = [asyncio.create_task(app.run_async()), asyncio.create_task(vehicle.run())]
+        try:
+            await vehicle.wait_connected(10)
+            await async_wait_until(lambda: getattr(app, "server", None) is not None and app.client.connected, 10)
+            async with websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws") as page:
+                snapshot = json.loads(await page.recv())
+                assert snapshot["spill"] is False and snapshot["buttons"] == ["DEPLOY", "RETURN_ALL"]
+                assert snapshot["ended"] == ""
+                vehicle.notify("NODE_REPORT_LOCAL", "NAME=alpha,X=12,Y=-3,HDG=90,SPD=2,MODE=MODE@ACTIVE:SURVEYING")
+                shown = await next_updates(page, lambda u: u["t"] == "vehicle")
+                assert (shown["name"], shown["x"], shown["phase"]) == ("alpha", 12.0, "SURVEYING")
+                vehicle.close()
+                db.stop()
+                ended = await next_updates(page, lambda u: u["t"] == "ended")
+                assert ended["text"] == f"the MOOSDB at 127.0.0.1:{db.port} went away"
+            async with websockets.connect(f"ws://127.0.0.1:{app.server.port}/ws") as page:
+                snapshot = json.loads(await page.recv())
+                assert snapshot["ended"] == ended["text"] and [v["name"] for v in snapshot["vehicles"]] == ["alpha"]
+                assert snapshot["notes"][-1]["text"] == f"mission ended: {ended['text']}"
+        finally:
+            app.stop()
+            vehicle.close()
+            await asyncio.wait_for(asyncio.gather(*tasks, return_exceptions=True), 10)
+            db.stop()
 
     asyncio.run(scenario())
 

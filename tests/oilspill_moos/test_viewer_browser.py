@@ -2,22 +2,28 @@
 running oil-spill mission (2 vehicles, time warp), watches the vehicles appear, clicks DEPLOY and
 sees their phase change, sees them move to the forecast pushed to pPathAssign (two horizons, each
 in the legend with its uncertainty band), re-pushes the boundary (a new cycle replacing the
-horizons) and calls the fleet back with RETURN_ALL, then replays the shoreside alog with the time slider. Screenshots are kept in artifacts/ (git-ignored).
+horizons) and calls the fleet back with RETURN_ALL, then replays the shoreside alog with the time slider,
+and sees "mission ended" over the last picture when the mission stops. MOOS-IvP's own s1_alpha (one
+vehicle, no spill) shows its vehicle from NODE_REPORT_LOCAL, without the spill's key and buttons.
+Labels never cover each other, the status is a readable table, the lat/long grid is labelled.
+Screenshots are kept in artifacts/ (git-ignored).
 """
 import asyncio
 import contextlib
 import json
+import re
 import time
 import urllib.request
 from pathlib import Path
 
 import pytest
 
-from helpers import wait_until
-from oilspill_moos.demo import OilspillMission, free_port
+from browser import Browser, find_chromium
+from helpers import SHARED, free_port, wait_until
+from mission_run import headless, prepare
 from oilspill_moos.forecaster.push import boundary_line, push_lines
+from oilspill_moos.oilspill_mission import OilspillMission
 from oilspill_moos.viewer.app import viewer_beside
-from oilspill_moos.viewer.browser import Browser, find_chromium
 
 pytestmark = pytest.mark.skipif(find_chromium() is None, reason="no chromium on PATH (Debian package `chromium`); "
                                 "the browser tests need it and run in CI, where .ci/run installs it")
@@ -29,6 +35,7 @@ ISSUED = time.time()
 FORECAST = [boundary_line(polygon, horizon, time=ISSUED + 3600 * horizon, crs="local", uncertainty_m=band)
             for horizon, band, polygon in ((3, 6, [(-30, 80), (30, 80), (30, 140), (-30, 140)]),
                                            (7, 12, [(-10, 110), (60, 110), (60, 180), (-10, 180)]))]
+S1_ALPHA = SHARED / "missions-corpus" / "s1_alpha"
 LEGEND = "[...document.querySelectorAll('#forecast-legend li')].map(li => li.querySelector('.horizon').textContent)"
 
 
@@ -84,6 +91,16 @@ async def until(browser: Browser, expression: str, timeout: float = TIMEOUT, wha
 
 
 PHASES = "[...document.querySelectorAll('#vehicles tbody td.phase')].map(td => td.textContent)"
+# Pairs of labels drawn over each other, or over a vehicle or a point, in the last frame (none, whatever
+# the picture).
+OVERLAPS = ("(() => { const l = window.viewerLabels, o = [], hit = (a, b) => a.x < b.x + b.w && b.x < a.x + a.w"
+            " && a.y < b.y + b.h && b.y < a.y + a.h; for (let i = 0; i < l.length; i++) {"
+            " for (let j = 0; j < i; j++) if (hit(l[i], l[j])) o.push([l[i].text, l[j].text]);"
+            " for (const b of window.viewerObstacles) if (hit(l[i], b)) o.push([l[i].text, 'a vehicle or point']); }"
+            " return o; })()")
+# The status table: one row per field, each value on one line (no word broken over two).
+STATUS_ROWS = ("[...document.querySelectorAll('#status dd')].map(dd => [dd.dataset.key, dd.textContent,"
+               " dd.getClientRects().length === 1 && dd.getBoundingClientRect().height < 20])")
 POSITIONS = "Object.fromEntries([...viewerState.vehicles.values()].map(v => [v.name, [v.x, v.y]]))"
 
 
@@ -127,6 +144,20 @@ def test_operator_sees_the_fleet_deploys_it_and_watches_it_move(live, browser):
         await browser.wheel("#map", -240)
         await until(browser, f"viewerView.scale > {scale} * 1.2", what="zoomed in by the wheel")
         await browser.click("#fit")
+        await until(browser, "viewerStats.frames > 0 && window.viewerLabels.length >= 2", what="labels drawn")
+        assert await browser.evaluate(OVERLAPS) == []
+        assert await browser.evaluate("!document.getElementById('key').hidden")   # an oil-spill mission: its key
+        rows = await until(browser, f"(r => r.length > 5 && r)({STATUS_ROWS})", what="the status table")
+        assert all(one_line for _, _, one_line in rows), rows
+        assert {key for key, _, _ in rows} >= {"phase", "vehicles", "boundary_age", "horizon"}, rows
+        assert dict((k, v) for k, v, _ in rows)["vehicles"] == "abe, ben", rows
+        grid = await browser.evaluate("window.viewerGrid")
+        assert grid["lat"] and all(re.fullmatch(r"28°4\d(\.\d+)?'N", t) for t in grid["lat"]), grid
+        assert grid["lon"] and all(re.fullmatch(r"88°2\d(\.\d+)?'W", t) for t in grid["lon"]), grid
+        log = await browser.evaluate("document.getElementById('log').textContent")
+        for line in ("boundary in force: oilspill_", "fleet phase STATION-KEEPING", "abe: STATION-KEEPING ->",
+                     "forecast cycle 1"):
+            assert line in log, f"{line!r} not in the log: {log}"
         await browser.screenshot(ARTIFACTS / "viewer_live.png")
         await until(browser, "(m => m && Number(m[1]) > 11)(/boundary_age=([0-9.]+)/.exec(viewerState.status))",
                     what="the boundary older than pPathAssign's min_replan_interval (10 s), so a re-push is no flood")
@@ -162,3 +193,71 @@ def test_finished_run_replays_with_the_time_slider(live, browser):
             assert shown.startswith(f"{end:.1f} /"), shown
             await browser.screenshot(ARTIFACTS / "viewer_replay.png")
         browser.run(reviewer())
+
+
+def test_the_page_says_mission_ended_and_keeps_the_last_picture(live, browser):
+    mission, url = live
+
+    async def operator():
+        await browser.goto(url)
+        await until(browser, f"{PHASES}.length === 2", what="both vehicles in the table")
+        assert await browser.evaluate("document.getElementById('ended').hidden")
+        mission.stop()   # the MOOSDBs go away; the viewer beside them stays up
+        await until(browser, "document.getElementById('link-text').textContent === 'mission ended'",
+                    what="the page saying the mission ended")
+        assert not await browser.evaluate("document.getElementById('ended').hidden")
+        assert await browser.evaluate(f"{PHASES}.length") == 2 and await browser.evaluate("viewerState.boundary")
+        log = await browser.evaluate("document.getElementById('log').textContent")
+        assert "mission ended: the MOOSDB at 127.0.0.1:" in log, log
+        await browser.screenshot(ARTIFACTS / "viewer_ended.png")
+
+    browser.run(operator())
+
+
+@pytest.mark.skipif(not S1_ALPHA.exists(), reason="needs ../shared/missions-corpus (MOOS-IvP's s1_alpha)")
+def test_single_vehicle_s1_alpha_shows_its_vehicle_without_the_spill(browser, tmp_path):
+    """`pAntler alpha.moos`: pMarineViewer inside the mission, as a MOOS-IvP user runs it."""
+    port, http_port = free_port(), free_port()
+    mission = prepare(S1_ALPHA, "alpha.moos", tmp_path, port, WARP)
+    text = mission.read_text()   # two test runs at once must not both want the viewer's default port 8080
+    mission.write_text(re.sub(r"(ProcessConfig = pMarineViewer\s*\{)", rf"\1\n  http_port = {http_port}", text, count=1))
+    url = f"http://127.0.0.1:{http_port}/"
+
+    def serving():
+        try:
+            return urllib.request.urlopen(url, timeout=1).status == 200
+        except OSError:
+            return False
+
+    async def operator():
+        async with headless(mission, port, WARP, ["NODE_REPORT_LOCAL"]):
+            await asyncio.to_thread(wait_until, serving, TIMEOUT, 0.1)
+            await browser.goto(url)
+            await until(browser, f"{PHASES}.length === 1", what="alpha in the vehicle table")
+            hidden = await browser.evaluate("['key', 'phase-section', 'forecast-toggle']"
+                                            ".map(id => document.getElementById(id).hidden)")
+            assert hidden == [True, True, True], hidden   # no spill: no spill key, phase or forecast toggle
+            buttons = await browser.evaluate("[...document.querySelectorAll('#buttons button')].map(b => b.dataset.label)")
+            assert buttons == ["DEPLOY", "RETURN", "SLOWER", "FASTER", "RETURN_ALL"], buttons
+            first = await browser.evaluate(POSITIONS)
+            await browser.click("#buttons button[data-label='DEPLOY']")
+            moved = (f"(() => {{ const a = {json.dumps(first)}; return Object.entries({POSITIONS})"
+                     ".some(([n, p]) => Math.hypot(p[0] - a[n][0], p[1] - a[n][1]) > 20); })()")
+            await until(browser, moved, what="alpha 20 m on its survey")
+            await until(browser, "window.viewerLabels.some(l => l.text !== 'alpha')", what="the waypoint's label")
+            await browser.click("#fit")
+            await until(browser, "viewerStats.frames > 3", what="frames drawn")
+            assert await browser.evaluate(OVERLAPS) == []
+            grid = await browser.evaluate("window.viewerGrid")
+            assert grid["lat"] and all(re.fullmatch(r"43°4\d(\.\d+)?'N", t) for t in grid["lat"]), grid
+            assert grid["lon"] and all(re.fullmatch(r"70°\d\d(\.\d+)?'W", t) for t in grid["lon"]), grid
+            log = await browser.evaluate("document.getElementById('log').textContent")
+            assert "alpha reporting" in log and "DEPLOY: DEPLOY=true" in log, log
+            await browser.screenshot(ARTIFACTS / "viewer_s1_alpha.png")
+        # pAntler stopped the mission, the viewer with it: the page says so and keeps the picture
+        await until(browser, "document.getElementById('link-text').textContent === 'mission ended'",
+                    what="the page saying the mission ended")
+        assert await browser.evaluate(f"{PHASES}.length") == 1
+        await browser.screenshot(ARTIFACTS / "viewer_s1_alpha_ended.png")
+
+    browser.run(operator())

@@ -13,7 +13,7 @@ from moosdb_py.alog import alog_header, format_alog_line
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.path_assign import Boundary, format_forecast
+from oilspill_moos.response.path_assign import Boundary, format_forecast
 from oilspill_moos.viewer.app import MarineViewer, Replay, page_setup, read_settings, serve_replay
 from oilspill_moos.viewer.model import (
     Button,
@@ -149,16 +149,20 @@ def test_bad_forecasts_are_refused_with_the_string(text, says):
 def test_scene_keeps_the_horizons_of_the_latest_forecast_cycle():
     scene = Scene()
     square = "pts={0,0:100,0:100,100:0,100}"
+    logged = []
     for horizon in (7, 3, 15):
-        [update] = scene.apply("OILSPILL_FORECAST", f"cycle=1,horizon={horizon},uncertainty=20,{square}", 1.0)
+        update, *notes = scene.apply("OILSPILL_FORECAST", f"cycle=1,horizon={horizon},uncertainty=20,{square}", 1.0)
+        logged += notes
     assert [f["horizon"] for f in update["forecasts"]] == [3, 7, 15] and update["t"] == "forecasts"
+    assert [n["text"] for n in logged] == ["forecast cycle 1 (no source)"]   # a new forecast is logged once
     [update] = scene.apply("OILSPILL_FORECAST", f"cycle=1,horizon=7,uncertainty=50,{square}", 2.0)
     assert [(f["horizon"], f["uncertainty"]) for f in update["forecasts"]] == [(3, 20), (7, 50), (15, 20)]
     with pytest.raises(ViewError):
         scene.apply("OILSPILL_FORECAST", "cycle=2,horizon=3,pts={0,0}", 3.0)
     assert len(scene.forecasts) == 3   # a bad one leaves the picture alone
-    [update] = scene.apply("OILSPILL_FORECAST", f"cycle=2,horizon=3,source=ltc-rk4,{square}", 4.0)
+    update, note = scene.apply("OILSPILL_FORECAST", f"cycle=2,horizon=3,source=ltc-rk4,{square}", 4.0)
     assert [(f["cycle"], f["horizon"], f["source"]) for f in update["forecasts"]] == [(2, 3, "ltc-rk4")]
+    assert note["text"] == "forecast cycle 2 (ltc-rk4)" and note["time"] == 4.0
     snap = scene.snapshot()
     json.dumps(snap)
     assert snap["forecasts"] == update["forecasts"]
@@ -194,7 +198,9 @@ def test_action_menu_lines_as_in_pmarineviewer():
 def test_scene_follows_the_mission_and_snapshots_it():
     scene = Scene(trail_length=3)
     for i in range(5):
-        [update] = scene.apply("NODE_REPORT", f"NAME=abe,X={i},Y=0,HDG=90,MODE=MODE@ACTIVE:STATION-KEEPING", 10.0 + i)
+        update, *notes = scene.apply("NODE_REPORT", f"NAME=abe,X={i},Y=0,HDG=90,MODE=MODE@ACTIVE:STATION-KEEPING",
+                                     10.0 + i)
+        assert len(notes) == (1 if i == 0 else 0)   # the log has its first report, not every one
     assert update["phase"] == "STATION-KEEPING" and update["seen"] == 14.0
     scene.apply("OILSPILL_BOUNDARY", "pts={0,0:100,0:100,100},label=oilspill_1", 15.0)
     scene.apply("OILSPILL_PHASE", "STARTING-POSITION", 15.0)
@@ -203,14 +209,20 @@ def test_scene_follows_the_mission_and_snapshots_it():
     scene.apply("STARTING_POSITION_UPDATES_ABE", "points=-10.0,5.0", 15.0)
     scene.apply("OIL_PATH_UPDATES_ABE", "points=-10,5:0,-10:10,5#repeat=forever#speed=2", 16.0)
     scene.apply("VIEW_POLYGON", "pts={0,0:1,0:1,1},label=standoff", 16.0)
-    scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,vehicles=abe", 17.0)
+    [status] = scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,vehicles=abe,Boundary_Age=2.5", 17.0)
+    assert status["fields"] == [["phase", "OIL-PATH"], ["vehicles", "abe"], ["boundary_age", "2.5"]]
+    with pytest.raises(ViewError, match="OILSPILL_STATUS 'phase=OIL-PATH,oops'"):   # the page shows one field a row
+        scene.apply("OILSPILL_STATUS", "phase=OIL-PATH,oops", 17.0)
     scene.apply("OILSPILL_WARNING", "127.0.0.1:5000: bad JSON", 17.0)
     snap = scene.snapshot()
     json.dumps(snap)  # the page gets it as JSON
     assert snap["vehicles"][0]["trail"] == [[2.0, 0.0], [3.0, 0.0], [4.0, 0.0]]
     assert snap["boundary"] == [[0, 0], [100, 0], [100, 100]] and snap["phase"] == "STARTING-POSITION"
     assert snap["starts"] == {"abe": [-10.0, 5.0]} and snap["loops"]["abe"][1] == [0.0, -10.0]
-    assert [m["label"] for m in snap["markers"]] == ["standoff"] and snap["notes"][0]["level"] == "warning"
+    assert [m["label"] for m in snap["markers"]] == ["standoff"] and snap["notes"][-1]["level"] == "warning"
+    assert [(n["level"], n["text"]) for n in snap["notes"][:-1]] == [   # pushes and phase changes are logged
+        ("event", "abe reporting, STATION-KEEPING"), ("event", "boundary in force: oilspill_1, 3 vertices"),
+        ("phase", "fleet phase STARTING-POSITION")]
     scene.apply("VIEW_POLYGON", "pts={0,0:1,0:1,1},label=standoff,active=false", 18.0)
     assert scene.snapshot()["markers"] == []
     with pytest.raises(ViewError, match="STARTING_POSITION_UPDATES_ABE"):
@@ -280,7 +292,8 @@ def test_replay_plays_seeks_back_and_reports_bad_lines(tmp_path):
     replay.speed = 2.0
     assert [u["x"] for u in replay.advance(1.0) if u["t"] == "vehicle"] == [0.0]       # t = 2
     updates = replay.advance(2.5)                                                     # t = 7
-    assert [u["t"] for u in updates] == ["vehicle", "note"] and "LOG_SHORESIDE.alog:" in updates[1]["text"]
+    assert [u["t"] for u in updates] == ["vehicle", "note", "note"] and "LOG_SHORESIDE.alog:" in updates[2]["text"]
+    assert updates[1]["text"] == "abe: INACTIVE -> STATION-KEEPING" and updates[1]["level"] == "phase"
     replay.seek(3.0)
     assert replay.scene.vehicles["abe"].report.x == 0.0 and len(replay.scene.vehicles["abe"].trail) == 1
     replay.advance(100.0)

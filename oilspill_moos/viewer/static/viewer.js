@@ -13,7 +13,7 @@ const FORECAST_STYLES = [
 const state = {
   setup: null, time: 0, vehicles: new Map(), markers: new Map(), boundary: null, forecasts: [], starts: {}, loops: {},
   phase: "", commanded: {}, status: "", trailLength: 200, replay: null,
-  observations: [], observedEdge: [], skill: "",
+  observations: [], observedEdge: [], skill: "", ended: "", statusFields: [], skillFields: [],
 };
 const MAX_OBSERVATIONS = 1000;
 const view = { cx: 0, cy: 0, scale: 0.5, userMoved: false };   // scale: pixels per metre
@@ -33,7 +33,10 @@ function connect() {
   const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws";
   socket = new WebSocket(url);
   socket.onopen = () => { setLink(true); stats.connectedAt = performance.now(); };
-  socket.onclose = () => { setLink(false); setTimeout(connect, 1000); };
+  socket.onclose = () => {
+    setLink(false);
+    if (!state.ended) setTimeout(connect, 1000);   // a mission that ended has nothing more to say
+  };
   socket.onmessage = (event) => {
     stats.messages += 1;
     const msg = JSON.parse(event.data);
@@ -48,9 +51,29 @@ function send(command) {
 }
 
 function setLink(up) {
-  document.getElementById("link-dot").className = up ? "" : "down";
   const replaying = state.setup && state.setup.mode === "replay";
-  document.getElementById("link-text").textContent = up ? (replaying ? "replay" : "live") : "disconnected — retrying";
+  document.getElementById("link-dot").className = state.ended ? "ended" : up ? "" : "down";
+  document.getElementById("link-text").textContent = state.ended ? "mission ended"
+    : up ? (replaying ? "replay" : "live") : "disconnected — retrying";
+}
+
+// The mission is over: say so over the map and keep the last picture (nothing is cleared).
+function showEnded() {
+  document.getElementById("ended").hidden = !state.ended;
+  document.getElementById("ended-text").textContent = state.ended
+    ? `(${state.ended}, ${clockText(state.time)} mission time)` : "";
+  for (const b of document.querySelectorAll("#controls button")) b.disabled = Boolean(state.ended);
+  setLink(socket !== null && socket.readyState === WebSocket.OPEN);
+}
+
+// An oil-spill mission shows its phase, status, forecast toggle and key; another (s1_alpha, ...)
+// shows them only once spill data turns up (a replay of an unknown log).
+function showSpill() {
+  const spill = Boolean(state.setup && state.setup.spill) || Boolean(state.boundary) || state.forecasts.length > 0
+    || Object.keys(state.loops).length > 0;
+  document.getElementById("key").hidden = !spill;
+  document.getElementById("forecast-toggle").hidden = !spill;
+  document.getElementById("phase-section").hidden = !(spill || state.phase || state.status || state.skill);
 }
 
 // ---- the picture ----------------------------------------------------------------------------------
@@ -58,7 +81,7 @@ function setLink(up) {
 function loadSnapshot(msg) {
   const first = state.setup === null || state.setup.mode !== msg.mode;
   state.setup = { mode: msg.mode, community: msg.community, origin: msg.origin, buttons: msg.buttons, t0: msg.t0,
-    actions: msg.actions };
+    actions: msg.actions, spill: msg.spill };
   state.vehicles.clear();
   state.markers.clear();
   state.trailLength = msg.trail_length;
@@ -66,19 +89,21 @@ function loadSnapshot(msg) {
   for (const m of msg.markers) state.markers.set(m.kind + "/" + m.label, m);
   Object.assign(state, { boundary: msg.boundary, forecasts: msg.forecasts, starts: msg.starts, loops: msg.loops, phase: msg.phase,
     commanded: msg.commanded, status: msg.status, time: msg.time, observations: msg.observations,
-    observedEdge: msg.observed_edge, skill: msg.skill });
+    observedEdge: msg.observed_edge, skill: msg.skill, ended: msg.ended || "", statusFields: msg.status_fields,
+    skillFields: msg.skill_fields });
   if (first) { buildControls(); setLink(true); }
   document.getElementById("log").replaceChildren();
   for (const note of msg.notes) addNote(note);
   setReplay(msg.replay || null);
   refreshForecasts();
   refreshPanel();
+  showEnded();
   if (!view.userMoved) fit();
 }
 
 function applyBatch(msg) {
   const started = performance.now();
-  state.time = msg.time;
+  if (!state.ended) state.time = msg.time;   // the clock stops with the mission
   if (msg.replay) setReplay(msg.replay);
   for (const u of msg.updates) apply(u);
   stats.updates += msg.updates.length;
@@ -109,14 +134,16 @@ function apply(u) {
     case "commanded": state.commanded[u.name] = u.phase; break;
     case "start": state.starts[u.name] = u.point; break;
     case "loop": state.loops[u.name] = u.points; break;
-    case "status": state.status = u.text; break;
+    case "status": state.status = u.text; state.statusFields = u.fields; break;
     case "obs":
       state.observations.push(u);
       if (state.observations.length > MAX_OBSERVATIONS) state.observations.shift();
       break;
     case "edge": state.observedEdge = u.points; break;
-    case "skill": state.skill = u.text; break;
+    case "skill": state.skill = u.text; state.skillFields = u.fields; break;
     case "note": addNote(u); break;
+    case "ended": state.ended = u.text; showEnded(); break;
+    case "resumed": state.ended = ""; showEnded(); break;
   }
 }
 
@@ -163,10 +190,11 @@ function refreshPanel() {
   const phase = document.getElementById("phase");
   phase.textContent = state.phase || "—";
   phase.className = "phase-tag ph-" + (state.phase || "none");
-  document.getElementById("status").textContent = state.status || "no status yet";
+  showFields(document.getElementById("status"), state.status, state.statusFields, "no status yet");
   const skill = document.getElementById("skill");
   skill.hidden = !state.skill;
-  skill.textContent = state.skill ? "fusion: " + state.skill : "";
+  showFields(skill, state.skill, state.skillFields, "");
+  showSpill();
   const body = document.querySelector("#vehicles tbody");
   const rows = [];
   sortedVehicles().forEach((v, i) => {
@@ -187,6 +215,32 @@ function refreshPanel() {
     rows.push(tr);
   });
   body.replaceChildren(...rows);
+}
+
+const FIELD_UNITS = { boundary_age: " s", horizon: " h" };
+// A status line for people: one row per field (the server splits the `key=value` line), "boundary
+// age  12.3 s", a vehicle list with spaces (so it wraps between names), -1 (pPathAssign's "none
+// yet") as a dash; the raw line in the tooltip.
+function showFields(dl, text, fields, empty) {
+  const rows = [];
+  for (const [key, raw] of fields) {
+    const unit = FIELD_UNITS[key] || (key.endsWith("_m") ? " m" : "");
+    const name = (unit === " m" ? key.slice(0, -2) : key).replace(/_/g, " ");
+    const value = raw === "-1" ? "—" : key === "vehicles" ? raw.split(":").join(", ") : raw + (raw ? unit : "");
+    const dt = document.createElement("dt"), dd = document.createElement("dd");
+    dt.textContent = name || "·";
+    dd.textContent = value || "—";
+    dd.dataset.key = key;
+    rows.push(dt, dd);
+  }
+  if (!rows.length && empty) {
+    const dd = document.createElement("dd");
+    dd.className = "empty";
+    dd.textContent = empty;
+    rows.push(dd);
+  }
+  dl.replaceChildren(...rows);
+  dl.title = (dl.id === "status" ? "OILSPILL_STATUS" : "OIL_FUSION_SKILL") + (text ? ": " + text : "");
 }
 
 // The legend: one row per horizon of the forecast shown, in the style it is drawn with.
@@ -289,7 +343,8 @@ function niceStep(metres) {
 function drawGrid() {
   const step = niceStep(90 / view.scale);
   const [x0, y1] = toWorld(0, 0), [x1, y0] = toWorld(canvas.width, canvas.height);
-  ctx.strokeStyle = "rgba(120, 160, 200, 0.12)";
+  ctx.strokeStyle = state.setup && state.setup.origin && document.getElementById("show-latlon").checked
+    ? "rgba(120, 160, 200, 0.06)" : "rgba(120, 160, 200, 0.12)";   // under a lat/long grid, fainter
   ctx.lineWidth = 1;
   ctx.beginPath();
   for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
@@ -321,9 +376,7 @@ function drawBoundary() {
   ctx.fillStyle = "rgba(30, 22, 12, 0.72)";
   ctx.fill();
   ctx.strokeStyle = "#c98b2b"; ctx.lineWidth = 2; ctx.stroke();
-  const [lx, ly] = toScreen(...state.boundary[0]);
-  ctx.fillStyle = "#e8b25a"; ctx.font = "11px system-ui, sans-serif";
-  ctx.fillText("spill boundary", lx + 4, ly - 4);
+  queueLabel("spill boundary", toScreen(...state.boundary[0]), 2, "#e8b25a", "11px system-ui, sans-serif", 3);
 }
 
 // Far horizons first so the near ones, the ones the fleet is likeliest to meet, lie on top: the
@@ -346,21 +399,115 @@ function drawForecasts() {
   labelForecasts();
 }
 
-// Each outline's label at its northernmost vertex, nearest horizon first; a label that would
-// cover one already placed moves up a line (the outlines of one forecast often share a top).
+// Each outline's label at its northernmost vertex, nearest horizon first (the outlines of one
+// forecast often share a top: the label placer moves the later ones aside).
 function labelForecasts() {
-  ctx.font = "bold 11px system-ui, sans-serif";
-  const placed = [];
   state.forecasts.forEach((f, i) => {
-    const text = horizonText(f.horizon), width = ctx.measureText(text).width;
-    let [x, y] = toScreen(...f.points.reduce((a, b) => (b[1] > a[1] ? b : a)));
-    x += 4; y -= 5;
-    const covers = (r) => x < r.x + r.w && r.x < x + width && Math.abs(r.y - y) < 13;
-    for (let tries = 0; tries < 8 && placed.some(covers); tries++) y -= 13;
-    placed.push({ x, y, w: width });
-    ctx.fillStyle = FORECAST_STYLES[i % FORECAST_STYLES.length].color;
-    ctx.fillText(text, x, y);
+    queueLabel(horizonText(f.horizon), toScreen(...f.points.reduce((a, b) => (b[1] > a[1] ? b : a))), 3,
+               FORECAST_STYLES[i % FORECAST_STYLES.length].color, "bold 11px system-ui, sans-serif", 2);
   });
+}
+
+// ---- labels: placed last, none over another or over a vehicle ------------------------------------
+
+const LABEL_H = 13;
+let queuedLabels = [], labelObstacles = [];
+window.viewerLabels = [];   // what was placed in the last frame: {text, x, y, w, h} (tests read it)
+window.viewerObstacles = [];   // the vehicles' hulls and the points' dots it kept clear of
+
+// `rank`: lower is placed first and so gets its preferred spot (vehicle names 0, markers 1, ...).
+function queueLabel(text, [x, y], clearance, color, font, rank) {
+  if (text) queuedLabels.push({ text, x, y, clearance, color, font, rank, order: queuedLabels.length });
+}
+
+function overlaps(a, b) { return a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h; }
+
+// Around the anchor: right, upper right, lower right, left, above, below; then the same rings
+// further out, with a leader line back to the anchor. A label that fits nowhere takes its first spot.
+function placeLabels() {
+  const placed = [];
+  queuedLabels.sort((a, b) => a.rank - b.rank || a.order - b.order);
+  for (const label of queuedLabels) {
+    ctx.font = label.font;
+    const w = ctx.measureText(label.text).width + 2, h = LABEL_H;
+    let chosen = null, ring = 0;
+    for (; ring < 5 && !chosen; ring++) {
+      const r = label.clearance + 3 + ring * (h + 2);
+      for (const [dx, dy] of [[r, -h / 2 - 4], [r, -h - r * 0.6], [r, r * 0.6], [-w - r, -h / 2], [-w / 2, -h - r],
+                              [-w / 2, r]]) {
+        const box = { x: label.x + dx, y: label.y + dy, w, h };
+        if (!placed.some((p) => overlaps(box, p)) && !labelObstacles.some((o) => overlaps(box, o))) {
+          chosen = box;
+          break;
+        }
+      }
+    }
+    if (!chosen) { ring = 1; chosen = { x: label.x + label.clearance + 3, y: label.y - h / 2 - 4, w, h }; }
+    if (ring > 1) {   // moved away from its thing: a thin line shows whose it is
+      ctx.strokeStyle = label.color; ctx.globalAlpha = 0.5; ctx.lineWidth = 1;
+      ctx.beginPath(); ctx.moveTo(label.x, label.y);
+      ctx.lineTo(Math.min(Math.max(label.x, chosen.x), chosen.x + w), Math.min(Math.max(label.y, chosen.y), chosen.y + h));
+      ctx.stroke(); ctx.globalAlpha = 1;
+    }
+    ctx.fillStyle = label.color; ctx.textBaseline = "top";
+    ctx.fillText(label.text, chosen.x + 1, chosen.y + 1);
+    ctx.textBaseline = "alphabetic";
+    placed.push({ text: label.text, ...chosen });
+  }
+  window.viewerLabels = placed;
+  window.viewerObstacles = labelObstacles;
+  queuedLabels = [];
+  labelObstacles = [];
+}
+
+// ---- lat/long grid: lines of equal latitude and longitude from the page's linear readout -----------
+
+const MINUTE_STEPS = [0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 15, 30, 60, 120, 300, 600];
+window.viewerGrid = { lat: [], lon: [] };   // the labels drawn in the last frame (tests read them)
+
+function latLon(o, x, y) { return [o.lat + o.dlat_dx * x + o.dlat_dy * y, o.lon + o.dlon_dx * x + o.dlon_dy * y]; }
+function localOf(o, lat, lon) {
+  const det = o.dlat_dx * o.dlon_dy - o.dlat_dy * o.dlon_dx, dl = lat - o.lat, dn = lon - o.lon;
+  return [(o.dlon_dy * dl - o.dlat_dy * dn) / det, (o.dlat_dx * dn - o.dlon_dx * dl) / det];
+}
+
+// 28°44.25'N: degrees and decimal minutes, as many decimals as the grid step needs.
+function minutesText(value, stepMin, pos, neg) {
+  const decimals = stepMin >= 1 ? 0 : Math.ceil(-Math.log10(stepMin) - 1e-9);
+  const a = Math.abs(value) + 1e-9;
+  let deg = Math.floor(a), min = ((a - deg) * 60).toFixed(decimals);
+  if (Number(min) >= 60) { deg += 1; min = (0).toFixed(decimals); }
+  const hemi = value < 0 ? neg : pos;
+  return stepMin >= 60 ? `${deg}°${hemi}` : `${deg}°${min.padStart(decimals ? decimals + 3 : 2, "0")}'${hemi}`;
+}
+
+function drawLatLonGrid() {
+  const o = state.setup && state.setup.origin;
+  window.viewerGrid = { lat: [], lon: [] };
+  if (!o || !document.getElementById("show-latlon").checked) return;
+  const corners = [[0, 0], [canvas.width, 0], [0, canvas.height], [canvas.width, canvas.height]]
+    .map(([px, py]) => latLon(o, ...toWorld(px, py)));
+  ctx.font = "10px ui-monospace, monospace";
+  ctx.lineWidth = 1;
+  for (const [index, dim, pos, neg] of [[0, canvas.height, "N", "S"], [1, canvas.width, "E", "W"]]) {
+    const values = corners.map((c) => c[index]), lo = Math.min(...values), hi = Math.max(...values);
+    const other = corners.map((c) => c[1 - index]), olo = Math.min(...other), ohi = Math.max(...other);
+    const step = MINUTE_STEPS.find((m) => (hi - lo) * 60 / m <= Math.max(2, dim / 110)) || 600;
+    for (let v = Math.ceil(lo * 60 / step) * step / 60; v <= hi; v += step / 60) {
+      const ends = [olo, ohi].map((w) => toScreen(...(index === 0 ? localOf(o, v, w) : localOf(o, w, v))));
+      ctx.strokeStyle = "rgba(150, 200, 170, 0.28)"; ctx.setLineDash([2, 4]);
+      ctx.beginPath(); ctx.moveTo(...ends[0]); ctx.lineTo(...ends[1]); ctx.stroke(); ctx.setLineDash([]);
+      const text = minutesText(v, step, pos, neg);
+      // latitudes labelled at the left edge, longitudes along the top below the map tools
+      const [[x0, y0], [x1, y1]] = ends;
+      const at = index === 0 ? [4, y0 + (y1 - y0) * (4 - x0) / ((x1 - x0) || 1) - 3]
+                             : [x0 + (x1 - x0) * (62 - y0) / ((y1 - y0) || 1) + 3, 62];
+      if (at[1] < 76 && index === 0 || at[1] > canvas.height - 40 || at[0] > canvas.width - 70) continue;
+      ctx.fillStyle = "rgba(170, 220, 190, 0.9)";
+      ctx.fillText(text, ...at);
+      window.viewerGrid[index === 0 ? "lat" : "lon"].push(text);
+    }
+  }
 }
 
 // Seglists (the helm's waypoint lists) first and faint, so the polygons and points drawn over
@@ -375,8 +522,8 @@ function drawMarkers() {
       const r = Math.max(2, Number(style.vertex_size) || 4);
       ctx.fillStyle = cssColor(style.vertex_color) || "#ffe066";
       ctx.beginPath(); ctx.arc(sx, sy, r, 0, 2 * Math.PI); ctx.fill();
-      ctx.fillStyle = "#cfd8e3"; ctx.font = "10px system-ui, sans-serif";
-      ctx.fillText(m.label, sx + r + 3, sy + 3);
+      queueLabel(m.label, [sx, sy], r, "//cfd8e3", "10px system-ui, sans-serif", 1);
+      labelObstacles.push({ x: sx - r, y: sy - r, w: 2 * r, h: 2 * r });   // no other label over the point
       continue;
     }
     if (m.points.length < 2) continue;
@@ -443,6 +590,7 @@ function drawVehicles(colors) {
     }
     const [sx, sy] = toScreen(v.x, v.y);
     const size = Math.max(9, (v.len || 4) * view.scale);
+    labelObstacles.push({ x: sx - size, y: sy - size, w: 2 * size, h: 2 * size });
     ctx.save();
     ctx.translate(sx, sy);
     ctx.rotate(v.hdg * Math.PI / 180);
@@ -452,8 +600,7 @@ function drawVehicles(colors) {
     if (stale) { ctx.strokeStyle = "#6b7f94"; ctx.lineWidth = 1.5; ctx.stroke(); }
     else { ctx.fillStyle = color; ctx.fill(); ctx.strokeStyle = "#0d1b2a"; ctx.lineWidth = 1; ctx.stroke(); }
     ctx.restore();
-    ctx.fillStyle = stale ? "#6b7f94" : "#e0e6ee"; ctx.font = "11px system-ui, sans-serif";
-    ctx.fillText(v.name, sx + size * 0.7 + 3, sy - 4);
+    queueLabel(v.name, [sx, sy], size, stale ? "#6b7f94" : "#e0e6ee", "bold 11px system-ui, sans-serif", 0);
   }
 }
 
@@ -462,6 +609,7 @@ function draw() {
   ctx.fillStyle = "#0b2239";
   ctx.fillRect(0, 0, canvas.width, canvas.height);
   drawGrid();
+  drawLatLonGrid();
   drawBoundary();
   if (document.getElementById("show-forecasts").checked) drawForecasts();
   const colors = new Map();
@@ -470,6 +618,7 @@ function draw() {
   drawObservations();
   drawPlans(colors);
   drawVehicles(colors);
+  placeLabels();
   drawScaleBar();
   stats.frames += 1;
   stats.frameMs.push(performance.now() - started);
@@ -490,6 +639,7 @@ function extent() {
   for (const f of state.forecasts) pts.push(...f.points);
   for (const p of Object.values(state.starts)) pts.push(p);
   for (const l of Object.values(state.loops)) pts.push(...l);
+  for (const m of state.markers.values()) pts.push(...m.points);   // the helm's survey lines and points
   return pts;
 }
 
@@ -540,6 +690,7 @@ document.getElementById("fit").onclick = () => { view.userMoved = false; fit(); 
 document.getElementById("show-trails").onchange = () => { dirty = true; };
 document.getElementById("show-markers").onchange = () => { dirty = true; };
 document.getElementById("show-forecasts").onchange = () => { dirty = true; };
+document.getElementById("show-latlon").onchange = () => { dirty = true; };
 window.addEventListener("resize", resize);
 
 resize();

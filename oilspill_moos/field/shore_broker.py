@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.node_broker import (
+from oilspill_moos.field.node_broker import (
     ACK_VAR,
     BrokerApp,
     BrokerState,

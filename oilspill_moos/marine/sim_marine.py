@@ -27,7 +27,7 @@ from oilspill_moos.app_config import (
 )
 from oilspill_moos.geodesy import mission_grid
 
-log = logging.getLogger("oilspill_moos.sim_marine")
+log = logging.getLogger("oilspill_moos.marine.sim_marine")
 
 # The speed at which the turn rate reaches its configured value (the reference
 # simulator's internal "full speed" of its turn-rate map).

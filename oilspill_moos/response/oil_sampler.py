@@ -12,7 +12,7 @@ import math
 
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import config_float, config_str, read_params, warn_unhandled
-from oilspill_moos.oil_fusion import ObservationRejected, format_observation, parse_observation
+from oilspill_moos.response.oil_fusion import ObservationRejected, format_observation, parse_observation
 
 SUBSCRIPTIONS = ("NAV_X", "NAV_Y", "OILSPILL_PHASE", "OIL_SENSOR_REPORT")
 

@@ -20,7 +20,7 @@ from shapely.geometry.base import BaseGeometry
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params, warn_unhandled
 from oilspill_moos.geodesy import mission_grid
-from oilspill_moos.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
+from oilspill_moos.response.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
 
 THICKNESS_CLASSES = ("sheen", "thick")
 

@@ -22,7 +22,7 @@ from behaviors.geometry import fmt_num
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import config_float, config_str
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.planner import (
+from oilspill_moos.response.planner import (
     Plan,
     PlanError,
     choose_forecast,
@@ -442,16 +442,22 @@ class Coordinator:
 
     def _seen(self, name: str, x: float, y: float, now: float) -> None:
         vehicle = self.vehicles.setdefault(name, Vehicle(name))
+        first_heard = vehicle.x is None
         vehicle.x, vehicle.y, vehicle.last_seen = x, y, now
-        if vehicle.dropped:
+        rejoined = vehicle.dropped
+        if rejoined:
             vehicle.dropped = False
             self._post("OILSPILL_REJOINED", name)
             self._post(f"COMMS_LOST_{name.upper()}", "false")
             self._post(f"DEPLOY_{name.upper()}", "true")  # its watchdog may have parked it at base
-            if self.phase in (STARTING_POSITION, OIL_PATH) and self.plan:
+        if self.phase in (STARTING_POSITION, OIL_PATH) and self.plan:
+            # A first report can be the only one able to take over starts whose vehicles were dropped
+            # while it was still silent (the re-share then found nobody).
+            orphaned = any(self.vehicles[v].dropped for v in self.plan.starts)
+            if rejoined or (first_heard and orphaned):
                 self._reshare(now)
-            elif self.phase == STATION_KEEPING:
-                self._post(f"REPORT_COORDINATES_{name.upper()}", str(self.seq))
+        elif rejoined and self.phase == STATION_KEEPING:
+            self._post(f"REPORT_COORDINATES_{name.upper()}", str(self.seq))
 
     # ---- helpers -------------------------------------------------------------------------
 

@@ -245,7 +245,7 @@ PUBLICATIONS:
         self._last_report = -math.inf
 
     def _read(self, cfg) -> None:
-        from oilspill_moos.path_assign import BoundaryError, operating_area
+        from oilspill_moos.response.path_assign import BoundaryError, operating_area
 
         fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
         try:
@@ -283,7 +283,7 @@ PUBLICATIONS:
             self._write_feedback(accepted)
 
     def _new_cycle(self, spec: str) -> None:
-        from oilspill_moos.path_assign import BoundaryError, parse_polygon_spec
+        from oilspill_moos.response.path_assign import BoundaryError, parse_polygon_spec
 
         try:
             polygon = shapely.make_valid(Polygon(parse_polygon_spec(spec)))

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from moosdb_py.app import MOOSApp
 from oilspill_moos.app_config import ConfigLike, config_bool, config_float, read_params, warn_unhandled
 
-log = logging.getLogger("oilspill_moos.marine_pid")
+log = logging.getLogger("oilspill_moos.marine.marine_pid")
 
 # The reference averages the derivative over this many recent finite differences.
 DERIVATIVE_HISTORY = 9

@@ -1,0 +1,115 @@
+"""Contacts as contact behaviours see them: the helm's ledger of other vehicles' NODE_REPORTs,
+the contact's extrapolated position, and closest point of approach (CPA) over a course x speed grid.
+
+The helm turns each `NODE_REPORT` into info-buffer values named after the vehicle, upper-cased
+(`HENRY_NAV_X`, `_NAV_Y`, `_NAV_SPEED`, `_NAV_HEADING`, `_NAV_DEPTH`, `_NAV_UTC`, `_NAV_GROUP`,
+`_NAV_TYPE`), as MOOS-IvP's helm does; a contact behaviour reads those.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from moosdb_py.formats import FormatError, parse_pairs
+
+from .logic import as_number
+
+# NODE_REPORT field -> info-buffer suffix; keys are matched without regard to case.
+NUMERIC_FIELDS = {"x": "NAV_X", "y": "NAV_Y", "spd": "NAV_SPEED", "hdg": "NAV_HEADING", "dep": "NAV_DEPTH",
+                  "depth": "NAV_DEPTH", "lat": "NAV_LAT", "lon": "NAV_LONG", "long": "NAV_LONG"}
+TIME_FIELDS = ("time", "utc_time", "moos_time")
+TEXT_FIELDS = {"group": "NAV_GROUP", "type": "NAV_TYPE"}
+REQUIRED = ("NAV_X", "NAV_Y", "NAV_SPEED", "NAV_HEADING", "NAV_UTC")
+
+
+def node_report_values(report: str) -> dict[str, float | str] | None:
+    """The info-buffer values of one NODE_REPORT, or None when it lacks a name, position, speed,
+    heading or time (such a report tells a contact behaviour nothing it can use)."""
+    try:
+        fields = parse_pairs(report)
+    except FormatError:
+        return None
+    name = fields.get("name", "").upper()
+    values: dict[str, float | str] = {}
+    for key, suffix in NUMERIC_FIELDS.items():
+        number = as_number(fields.get(key, ""))
+        if number is not None:
+            values[suffix] = number
+    stamps = [as_number(fields[k]) for k in TIME_FIELDS if k in fields]
+    stamp = next((s for s in stamps if s is not None), None)
+    if stamp is not None:
+        values["NAV_UTC"] = stamp
+    values.update({suffix: fields[key] for key, suffix in TEXT_FIELDS.items() if key in fields})
+    if not name or any(k not in values for k in REQUIRED):
+        return None
+    return {f"{name}_{suffix}": value for suffix, value in values.items()}
+
+
+def extrapolate(x: float, y: float, speed: float, heading: float, age: float, decay_start: float,
+                decay_end: float) -> tuple[float, float]:
+    """Where a contact last seen `age` seconds ago is now: straight on at its speed until
+    `decay_start`, then slowing linearly to a stop at `decay_end` (MOOS-IvP's LinearExtrapolator)."""
+    if age <= 0:
+        return x, y
+    if age <= decay_start:
+        travelled = speed * age
+    elif decay_end <= decay_start:
+        travelled = speed * decay_start
+    else:
+        slowing = min(age, decay_end) - decay_start
+        now_speed = speed * (1 - slowing / (decay_end - decay_start))
+        travelled = speed * decay_start + (speed + now_speed) / 2 * slowing
+    a = math.radians(heading)
+    return x + travelled * math.sin(a), y + travelled * math.cos(a)
+
+
+def velocity(heading, speed):
+    """(vx, vy) of a marine heading (degrees, 0 = north, 90 = east) and a speed; numpy-friendly."""
+    a = np.radians(heading)
+    return np.multiply(speed, np.sin(a)), np.multiply(speed, np.cos(a))
+
+
+def cpa_distance(osx: float, osy: float, os_heading, os_speed, cnx: float, cny: float, cnh: float,
+                 cnv: float, time_on_leg: float) -> np.ndarray:
+    """Closest distance between ownship on each (heading, speed) and the contact on its straight track,
+    over the next `time_on_leg` seconds; broadcasts over array headings and speeds."""
+    ovx, ovy = np.broadcast_arrays(*velocity(os_heading, os_speed))
+    cpa = leg_cpa(osx - cnx, osy - cny, np.atleast_1d(ovx), np.atleast_1d(ovy), *velocity(cnh, cnv), time_on_leg)
+    return cpa.reshape(ovx.shape)
+
+
+def leg_cpa(rx: float, ry: float, ovx, ovy, cvx: float, cvy: float, time_on_leg: float) -> np.ndarray:
+    """The CPA from ownship-minus-contact position (rx, ry), ownship velocities (arrays) and the
+    contact's velocity. In place and without hypot or masked division: the helm runs this for every
+    contact every iteration (numpy's hypot is several times slower than sqrt of the squares). The
+    scalars enter as Python floats, so single-precision grids stay single precision."""
+    rx, ry, cvx, cvy = float(rx), float(ry), float(cvx), float(cvy)
+    vx = ovx - cvx
+    vy = ovy - cvy
+    vv = vx * vx
+    vv += vy * vy
+    t = vx * rx
+    t += vy * ry
+    t /= -np.maximum(vv, 1e-12)       # where the relative velocity is 0, so is the numerator: t = 0
+    np.clip(t, 0.0, time_on_leg, out=t)
+    vx *= t
+    vx += rx
+    vy *= t
+    vy += ry
+    vx *= vx
+    vy *= vy
+    vx += vy
+    return np.sqrt(vx, out=vx)
+
+
+def closing_speed(osx: float, osy: float, osh: float, osv: float, cnx: float, cny: float, cnh: float,
+                  cnv: float) -> float:
+    """How fast the range is shrinking now (m/s; negative when opening)."""
+    rx, ry = osx - cnx, osy - cny
+    rng = math.hypot(rx, ry)
+    if rng == 0:
+        return 0.0
+    ovx, ovy = velocity(osh, osv)
+    cvx, cvy = velocity(cnh, cnv)
+    return float(-(rx * (ovx - cvx) + ry * (ovy - cvy)) / rng)

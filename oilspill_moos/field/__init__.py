@@ -1,0 +1,1 @@
+"""MOOS-IvP field apps: the shoreside/vehicle brokers that bridge communities over pShare."""
