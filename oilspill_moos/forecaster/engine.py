@@ -12,7 +12,7 @@ Kinds (``KINDS``):
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the physics prior with a learned correction of
   its drift (residual displacement), its spreading (area ratio) and the spread of its error.
 
-Uncertainty: an ensemble of ``MEMBERS`` members. For the physics and learned kinds a member's forcing
+Uncertainty: an ensemble of ``MEMBERS`` members (``envelope`` draws the 50 % and 90 % contours). For the physics and learned kinds a member's forcing
 is the given forcing with errors of the sizes ``FORCING_ERRORS`` (speed factors, direction biases);
 with uniform forcing this shifts the whole footprint, so a member is the central footprint displaced
 by its difference in drift, plus the learned spread for learned kinds. Baselines have no forcing, so
@@ -216,6 +216,15 @@ def correction_from(mean: np.ndarray, sigma: np.ndarray, angle: float) -> Correc
     return Correction(drift_m=drift_m, log_area=mean[:, 2], sigma_m=np.column_stack([sigma_iso, sigma_iso]))
 
 
+def envelope(mask: np.ndarray, grid, offsets: np.ndarray, level: float) -> MultiPolygon:
+    """The footprint swept over the ``level`` share of ensemble members nearest the ensemble's centre:
+    the region holding the oil with that confidence (cells any of those members covers)."""
+    order = np.argsort(np.linalg.norm(offsets - offsets.mean(axis=0), axis=1))
+    kept = offsets[order[:max(1, math.ceil(level * len(offsets)))]]
+    big, p = probability(mask, grid, kept)
+    return big.contour(p, 0.5 / len(kept))
+
+
 @dataclass
 class Settings:
     params: DriftParameters = field(default_factory=DriftParameters)
@@ -293,8 +302,7 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
                 mask = grid.rasterise(geometry)
             else:
                 grid, mask = masks[j]
-            big, p = probability(mask, grid, offsets)
-            c50, c90 = big.contour(p, 0.5), big.contour(p, 0.1)
+            c50, c90 = (envelope(mask, grid, offsets, level) for level in (0.5, 0.9))
         _, centroid, _ = F.second_moments(geometry)
         out.append(PlanarForecast(float(h), geometry, c50, c90, spread * scale[j], centroid, spread))
     return out

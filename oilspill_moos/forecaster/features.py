@@ -333,19 +333,3 @@ def window_features(shapes: list[Shape], times_s: np.ndarray, environments: np.n
     check_finite(x, where="window features")
     return x, elapsed, angle
 
-
-# The learned correction is trained on top of this: the residual drift of the last few observed
-# intervals, persisted over the horizon and shrunk (weight and count chosen on the validation split,
-# where this alone explained half of the drift variance).
-ANCHOR = {"last": 3, "weight": 0.75}
-
-
-def residual_anchor(x: np.ndarray, horizons_h=HORIZONS_H, last: int = ANCHOR["last"],
-                    weight: float = ANCHOR["weight"]) -> np.ndarray:
-    """[..., H, 2] km (frame): ``weight`` x the mean residual velocity (observed minus forcing-predicted)
-    over the last ``last`` observed intervals of windows ``x`` [..., W, F], times each horizon."""
-    x = np.asarray(x, float)
-    resid = x[..., -last:, [FEATURE_INDEX["resid_u"], FEATURE_INDEX["resid_v"]]]
-    real = (x[..., -last:, FEATURE_INDEX["observed"]] > 0) & (x[..., -last:, FEATURE_INDEX["dt_h"]] > 0)
-    velocity = (resid * real[..., None]).sum(axis=-2) / np.maximum(real.sum(axis=-1), 1)[..., None]
-    return weight * velocity[..., None, :] * np.asarray(horizons_h, float)[:, None] * 3.6

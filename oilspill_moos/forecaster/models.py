@@ -225,7 +225,6 @@ class Corrector:
         self.target_mean = np.asarray(extra["target_scaler"]["mean"], float)
         self.target_std = np.asarray(extra["target_scaler"]["std"], float)
         self.horizons_h = tuple(extra["horizons_h"])
-        self.anchor = extra.get("anchor")
 
     @classmethod
     def load(cls, path) -> "Corrector":
@@ -243,10 +242,6 @@ class Corrector:
             means.append(mean.numpy() * self.target_std + self.target_mean)
             sigmas.append(sigma.numpy() * self.target_std)
         mean, sigma = np.concatenate(means), np.concatenate(sigmas)
-        if self.anchor is not None:         # the network learned the rest of the drift beyond this
-            from .features import residual_anchor
-
-            mean[..., :2] += residual_anchor(x, self.horizons_h, **self.anchor)
         if not (np.isfinite(mean).all() and np.isfinite(sigma).all()):
             raise ValueError(f"{self.model.config.kind} diverged on this window (its steps are integrated in a fixed "
                              "number of sub-steps); the fused solver stays bounded for any step: use --model ltc-fused")

@@ -5,8 +5,7 @@ For a case ending at observation time t and horizon h the targets are, in the fr
 ``features.window_features`` (x along the forcing-predicted drift):
 
 - the drift residual: true centroid at t + h minus the prior's centroid (the mean of its particles),
-  in km, less the residual anchor (``features.residual_anchor``: the recent observed residual drift,
-  persisted and shrunk), which the model adds back;
+  in km;
 - the log area ratio: log(true area / prior footprint area).
 
 Loss: MSE on the scaled targets, plus a Gaussian negative log-likelihood for the spread head on the
@@ -25,6 +24,7 @@ import copy
 import hashlib
 import json
 import math
+import pickle
 import random
 import time
 from dataclasses import asdict, dataclass
@@ -246,8 +246,17 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _read_examples(path, key: dict):
+    """(train, val) examples from ``path`` if it holds ones built for ``key``, else None."""
+    if path is None or not Path(path).is_file():
+        return None
+    blob = pickle.loads(Path(path).read_bytes())
+    return (blob["train"], blob["val"]) if blob.get("key") == key else None
+
+
 def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0, noise_draws: int = 3,
-                 progress: bool = True, adaptive_fused: bool = False, **overrides) -> dict:
+                 progress: bool = True, adaptive_fused: bool = False, examples_cache: Path | None = None,
+                 **overrides) -> dict:
     """Train each kind on the same examples and scalers; write ``<kind>.pt``, then calibrate every kind
     (learned and baselines) on the validation split into ``calibration.json`` (with the training record)."""
     from . import dataset as D
@@ -257,15 +266,19 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     split = D.split_scenarios(scenarios, seed=split_seed)
     params = DriftParameters()
     started = time.perf_counter()
-    train_ex = build_examples(split.train, params, noise_draws, progress)
-    val_ex = build_examples(split.val, params, 1, progress)
+    sha = file_sha256(stem.with_suffix(".npz"))
+    key = {"dataset_sha256": sha, "noise_draws": noise_draws, "drift": params.to_dict(), "split_seed": split_seed}
+    cached = _read_examples(examples_cache, key)
+    if cached is None:
+        train_ex, val_ex = build_examples(split.train, params, noise_draws, progress), build_examples(split.val, params, 1, progress)
+        if examples_cache is not None:
+            Path(examples_cache).write_bytes(pickle.dumps({"key": key, "train": train_ex, "val": val_ex}))
+    else:
+        train_ex, val_ex = cached
     feature_scaler = F.FeatureScaler.fit(train_ex.x.reshape(-1, train_ex.x.shape[-1]))
-    for ex in (train_ex, val_ex):           # the networks learn what the residual anchor leaves
-        ex.y[..., :2] -= F.residual_anchor(ex.x)
     mean, std = train_ex.y.mean(axis=0), np.maximum(train_ex.y.std(axis=0), 1e-6)
     extra = {"feature_scaler": feature_scaler.to_dict(), "target_scaler": {"mean": mean.tolist(), "std": std.tolist()},
              "target_names": list(F.TARGET_NAMES), "horizons_h": list(F.HORIZONS_H), "drift": params.to_dict(),
-             "anchor": dict(F.ANCHOR),
              "split_seed": split_seed, "split": split.ids(),
              "dataset": {"file": stem.with_suffix(".npz").name, "sha256": file_sha256(stem.with_suffix(".npz"))}}
 
@@ -340,6 +353,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     parser.add_argument("--adaptive", action="store_true", help="adaptive step for the ltc-fused model")
     parser.add_argument("--threads", type=int, default=TrainConfig.threads)
     parser.add_argument("--max-minutes", type=float, help="wall-clock cap per model")
+    parser.add_argument("--examples-cache", type=Path, help="pickle of the built examples: reused when it was built "
+                        "from the same dataset, noise draws and prior, written otherwise (building takes minutes)")
     parser.add_argument("--calibrate-only", action="store_true",
                         help="train nothing: recalibrate the kinds whose weights are in --out")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -359,5 +374,6 @@ def main(argv=None, args: argparse.Namespace | None = None) -> int:
                  "unfolds": args.unfolds, "threads": args.threads,
                  "max_seconds": None if args.max_minutes is None else 60 * args.max_minutes}
     train_models(kinds, dataset_stem=args.dataset, out_dir=args.out, split_seed=args.split_seed,
-                 noise_draws=args.noise_draws, progress=not args.quiet, adaptive_fused=args.adaptive, **overrides)
+                 noise_draws=args.noise_draws, progress=not args.quiet, adaptive_fused=args.adaptive,
+                 examples_cache=args.examples_cache, **overrides)
     return 0

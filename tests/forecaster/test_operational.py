@@ -33,7 +33,8 @@ def test_every_shipped_kind_forecasts_every_horizon(kind, replayed):
         assert isinstance(f.geometry, MultiPolygon) and f.geometry.is_valid
         assert 0.1 < plane.area / last.area < 10
         assert f.valid_time == F.as_utc(history[1][-1]) + timedelta(hours=f.horizon_h)
-        assert F.to_plane(f.contour_90).area >= F.to_plane(f.contour_50).area > 0
+        # P >= 50 % may be nowhere when the calibrated spread exceeds the slick; the 90 % envelope never is
+        assert F.to_plane(f.contour_90).area >= max(F.to_plane(f.contour_50).area, 0.5 * plane.area) > 0
         assert f.uncertainty_m > 0 and f.line().startswith(b'{"type":"boundary"')
     assert forecasts[-1].uncertainty_m > forecasts[0].uncertainty_m
 
@@ -58,4 +59,4 @@ def test_real_dwh_17_and_19_may_forecast_20_may_plausibly():
             assert f.geometry.is_valid and not f.geometry.is_empty, kind
             assert 0.5 < g.area / last.area < 2.0, kind                  # no doubling in 15 h
             assert g.centroid.distance(last.centroid) < 100_000, kind
-            assert g.intersection(plane.to_plane(truth.geometry)).area > 0, kind
+            assert g.intersection(plane.to_plane(F.repaired(truth.geometry))).area > 0, kind
