@@ -2,12 +2,13 @@
 import pytest
 
 from oilspill_moos.forecaster.__main__ import SUBCOMMANDS, main
+from oilspill_moos.forecaster.kinds import DEFAULT_MODEL
 
 
 def test_example_and_interface_describe_the_process(capsys):
     assert main(["--example"]) == 0
     example = capsys.readouterr().out
-    for flag in ("--host 127.0.0.1", "--port 9100", "--model ltc-fused", "--interval 60", "--once"):
+    for flag in ("--host 127.0.0.1", "--port 9100", f"--model {DEFAULT_MODEL}", "--interval 60", "--once"):
         assert flag in example
     assert main(["--interface"]) == 0
     interface = capsys.readouterr().out
@@ -40,7 +41,6 @@ from shapely.geometry import Point, mapping
 
 from oilspill_moos.forecaster import operational
 from oilspill_moos.forecaster.features import to_lonlat
-from oilspill_moos.forecaster.kinds import DEFAULT_MODEL
 
 T0 = datetime(2020, 6, 1, 6, 0)        # naive: UTC
 
