@@ -10,8 +10,9 @@ after its valid time and samples the truth (uFldOilSensor's model: oil within ``
 positives, 5 % false negatives, seed 0), ``--samples`` readings evenly along the loop.
 
 * feedback off: every cycle is the satellite-only forecast (horizon 3, 7, 11, 15 h);
-* feedback on: the readings re-anchor the forecast the fleet circled (forecaster/assimilate.py), the
-  anchor is appended to the history, and the next cycle is a 3 h forecast from it.
+* feedback on: the readings re-anchor the forecast the fleet circled (forecaster/assimilate.py, as the
+  operational loop does: ``RESCALE``), the anchor is appended to the history, and the next cycle is a
+  3 h forecast from it.
 
 Printed per cycle: mean IoU with the truth off and on, the gain (on - off) with a paired bootstrap 95 %
 CI over scenarios, and the centroid errors. Geometry is on each scenario's own equal-area plane.
@@ -27,7 +28,7 @@ import numpy as np
 import shapely
 
 from oilspill_moos.forecaster import features as F
-from oilspill_moos.forecaster.assimilate import SensorReadings, reanchor
+from oilspill_moos.forecaster.assimilate import RESCALE, SensorReadings, reanchor
 from oilspill_moos.forecaster.dataset import GULF_STEM, load_dataset, split_scenarios
 from oilspill_moos.forecaster.evaluate import bootstrap_ci, iou
 from oilspill_moos.forecaster.kinds import DEFAULT_MODEL, KINDS
@@ -77,7 +78,7 @@ def run_scenario(forecaster: Forecaster, scenario, args) -> dict[str, list[tuple
         lonlat = shapely.get_coordinates(plane.to_lonlat(shapely.MultiPoint(xy)))
         readings = SensorReadings(lonlat[:, 0], lonlat[:, 1], oil, np.full(args.samples, sensor.range_m),
                                   np.full(args.samples, release.timestamp() + 3600 * seen_h))
-        geometries = [*geometries, reanchor(on.geometry, readings)]
+        geometries = [*geometries, reanchor(on.geometry, readings, rescale=RESCALE)]
         times = [*times, readings.time()]
         envs = [*envs, env(seen_h)]
     return rows
