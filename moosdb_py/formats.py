@@ -29,10 +29,12 @@ The rules chosen (docs/formats.md says the same):
 from __future__ import annotations
 
 import functools
+import math
 import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
+from importlib import metadata
 
 
 class FormatError(ValueError):
@@ -44,6 +46,7 @@ FALSE_WORDS = frozenset({"false", "off"})
 
 # MOOS's numeric strings: what atof reads completely; Python's extras (`1_0`, `nan`, `inf`) are not numbers here.
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_NON_FINITE = re.compile(r"[+-]?(?:nan|inf|infinity)\Z", re.IGNORECASE)
 
 
 def is_number(text: str) -> bool:
@@ -53,10 +56,10 @@ def is_number(text: str) -> bool:
 def parse_number(text: str) -> float:
     """A MOOS number; FormatError for anything else, infinities included."""
     word = str(text).strip()
-    if not _NUMBER.match(word):
+    value = float(word) if _NUMBER.match(word) or _NON_FINITE.match(word) else None
+    if value is None:
         raise FormatError(f"expected a number, got {text!r}")
-    value = float(word)
-    if value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):
         raise FormatError(f"expected a finite number, got {text!r}")
     return value
 
@@ -92,30 +95,55 @@ def format_bool(value: bool) -> str:
 
 
 def split_fields(text: str, sep: str = ",") -> list[str]:
-    """`text` split at `sep` outside braces: `a=1,pts={1,2:3,4}` -> ['a=1', 'pts={1,2:3,4}']."""
-    fields, depth, start = [], 0, 0
+    """`text` split at `sep` outside braces and double quotes (MOOS's parseStringQ), quotes kept:
+    `a=1,pts={1,2:3,4},s="x,y"` -> ['a=1', 'pts={1,2:3,4}', 's="x,y"']; an unclosed quote is an error."""
+    fields, depth, quoted, start = [], 0, False, 0
     for i, char in enumerate(text):
-        if char == "{":
+        if char == '"':
+            quoted = not quoted
+        elif quoted:
+            continue
+        elif char == "{":
             depth += 1
         elif char == "}":
             depth = max(depth - 1, 0)
         elif char == sep and depth == 0:
             fields.append(text[start:i])
             start = i + 1
+    if quoted:
+        raise FormatError(f"unclosed double quote in {text!r}")
     fields.append(text[start:])
     return fields
 
 
-def parse_pairs(text: str, sep: str = ",") -> dict[str, str]:
-    """`a=1, B = x,pts={1,2:3,4}` -> {'a': '1', 'b': 'x', 'pts': '{1,2:3,4}'}."""
+def unquote(value: str) -> str:
+    """A value without the double quotes around it (`"a, b"` -> `a, b`), as a quoted field means it."""
+    value = value.strip()
+    return value[1:-1] if len(value) >= 2 and value[0] == value[-1] == '"' else value
+
+
+def split_quoted(text: str, sep: str = ",") -> list[str]:
+    """The non-empty fields of `text`, stripped, each value without its surrounding double quotes
+    (`a=1, b="x,y"` -> ['a=1', 'b=x,y']): how NODE_MESSAGE and contact-manager alert lines are read."""
+    parts = []
+    for item in split_fields(str(text), sep):
+        key, eq, value = item.partition("=")
+        if item.strip():
+            parts.append(f"{key.strip()}={unquote(value)}" if eq else unquote(item))
+    return parts
+
+
+def parse_pairs(text: str, sep: str = ",", unquoted: bool = False) -> dict[str, str]:
+    """`a=1, B = x,pts={1,2:3,4}` -> {'a': '1', 'b': 'x', 'pts': '{1,2:3,4}'}; with `unquoted`, values
+    lose their surrounding double quotes (`s="x,y"` -> 'x,y')."""
     pairs: dict[str, str] = {}
     for item in split_fields(str(text), sep):
         if not item.strip():
             continue
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
-            raise FormatError(f"{item.strip()!r} is not a key=value pair")
-        pairs[key.strip().lower()] = value.strip()
+            raise FormatError(f"{item.strip()!r} is not key=value")
+        pairs[key.strip().lower()] = unquote(value) if unquoted else value.strip()
     return pairs
 
 
@@ -200,6 +228,15 @@ def wild_match(pattern: str, text: str) -> bool:
 
 def is_pattern(text: str) -> bool:
     return "*" in text or "?" in text
+
+
+def version_page(name: str) -> str:
+    """What `APP --version` prints: the app's MOOS name and this package's release."""
+    try:
+        release = metadata.version("oilspill-moos")
+    except metadata.PackageNotFoundError:   # run from a source tree that was never installed
+        release = "unknown"
+    return f"{name} {release} (oilspill-moos: the MOOS-IvP app in Python)\n"
 
 
 def print_page(text: str) -> None:
