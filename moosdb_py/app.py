@@ -64,6 +64,7 @@ class MOOSApp:
                                  on_mail=self._on_mail, on_connect=self._on_connect, time_warp=self.time_warp)
         self.start_time = self.moos_time()
         self.iterations = 0
+        self.ticks_missed = 0   # AppTick periods that passed with no iteration: the app fell behind its AppTick
         self.app_error = False
         self._started_mono = _time.monotonic()
         self._mail: list[MOOSMsg] = []
@@ -138,7 +139,7 @@ class MOOSApp:
         cpu = 100.0 * (usage.ru_utime + usage.ru_stime) / max(_time.monotonic() - self._started_mono, 1e-9)
         fields = [f"AppErrorFlag={'true' if self.app_error else 'false'}", f"Uptime={uptime:g}",
                   f"cpuload={cpu:.4g}", f"memory_kb={_memory_kb()}", f"memory_max_kb={usage.ru_maxrss:g}",
-                  f"MOOSName={self.name}",
+                  f"MOOSName={self.name}", f"Iterations={self.iterations}", f"TicksMissed={self.ticks_missed}",
                   'Publishing="' + "".join(f"{k}," for k in sorted(self.client.published)) + '"',
                   'Subscribing="' + "".join(f"{k}," for k in sorted(self.client.registrations)) + '"']
         fields += [f"{k}={v}" for k, v in self.status_fields().items()]
@@ -175,7 +176,11 @@ class MOOSApp:
                 if now >= next_status:
                     next_status = now + STATUS_PERIOD
                     self.notify(f"{self.name.upper()}_STATUS", self.status())
-                next_tick = max(next_tick + 1.0 / (self.app_tick * self.time_warp), now)   # AppTick may change
+                period = 1.0 / (self.app_tick * self.time_warp)   # AppTick may change
+                next_tick += period
+                if now > next_tick:
+                    self.ticks_missed += int((now - next_tick) / period)
+                    next_tick = now
                 try:
                     async with asyncio.timeout(max(0.0, next_tick - _time.monotonic())):
                         await self._stop.wait()
