@@ -3,8 +3,9 @@
     python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one]
 
 Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
-pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process` (the
-MOOSDB is its child process) and deployed at once. Over a window of wall time while the
+pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process
+--host-db` (one process per vessel, apps and DB talking in-process; `--sockets`: the MOOSDB as
+pAntler's child and the apps on loopback TCP) and deployed at once. Over a window of wall time while the
 vessels drive their survey, it sums the CPU seconds (utime + stime from /proc, so a loaded
 machine does not inflate the figure) of every pAntler and its children, divided by the
 simulated seconds (window x warp) and by the vessel count. An app fell behind when its
@@ -100,7 +101,7 @@ def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]
     return late
 
 
-async def run_fleet(vessels: int, warp: float, window: float) -> tuple[float, list[str]]:
+async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...]) -> tuple[float, list[str]]:
     """(CPU ms per vessel per simulated second, apps that fell behind their AppTick)."""
     with tempfile.TemporaryDirectory(prefix="vehicle_bench_") as tmp:
         antlers, watchers, tasks = [], [], []
@@ -109,7 +110,7 @@ async def run_fleet(vessels: int, warp: float, window: float) -> tuple[float, li
                 port = free_port()
                 mission = prepare(Path(tmp) / f"v{index}", index, port, warp)
                 antlers.append(await asyncio.create_subprocess_exec(
-                    str(BIN / "pAntler"), mission.name, "--one-process", "--quiet", cwd=mission.parent,
+                    str(BIN / "pAntler"), mission.name, *modes, "--quiet", cwd=mission.parent,
                     stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
                     start_new_session=True))
                 watcher = MOOSClient("uBenchWatch", port=port, time_warp=warp)
@@ -155,11 +156,14 @@ def main() -> None:
     parser.add_argument("--warps", default="10,20", help="warps at which to find the largest fleet that keeps up")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--one", action="store_true", help="one vessel at warp 10 only")
+    parser.add_argument("--sockets", action="store_true",
+                        help="the MOOSDB as a child process, apps over loopback TCP (pAntler --one-process alone)")
     args = parser.parse_args()
+    modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
     fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]
     kept_up: dict[float, dict[int, bool]] = {10.0: {}}
     for vessels in fleets:
-        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window))
+        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window, modes))
         kept_up[10.0][vessels] = not behind
         print(f"{vessels:3d} vessel(s) at warp 10: {ms:7.2f} ms CPU per vessel per simulated second; "
               f"behind their AppTick: {', '.join(behind) or 'none'}", flush=True)
@@ -175,7 +179,7 @@ def main() -> None:
                 high = vessels
         vessels = max(1, low * 2) if high is None else (low + high) // 2
         while vessels > low and (high is None or vessels < high) and vessels <= 64:
-            _, behind = asyncio.run(run_fleet(vessels, warp, args.window))
+            _, behind = asyncio.run(run_fleet(vessels, warp, args.window, modes))
             print(f"  warp {warp:g}, {vessels} vessel(s): {'behind: ' + ', '.join(behind) if behind else 'kept up'}",
                   flush=True)
             if behind:

@@ -37,8 +37,9 @@ class MOOSClient:
 
     def __init__(self, name: str, host: str = "127.0.0.1", port: int = 9000, *,
                  on_mail: Callable[[list[MOOSMsg]], None] | None = None,
-                 on_connect: Callable[[], None] | None = None, time_warp: float = 1.0):
+                 on_connect: Callable[[], None] | None = None, time_warp: float = 1.0, local_db=None):
         self.name, self.host, self.port = name, host, port
+        self.local_db = local_db    # a MOOSDB in this event loop: connect through `open_local`, no socket
         self.on_mail, self.on_connect = on_mail, on_connect
         self.time_warp = time_warp
         self.connected = False
@@ -69,7 +70,10 @@ class MOOSClient:
         self._wake, self._connected_event, self._closed_event = asyncio.Event(), asyncio.Event(), asyncio.Event()
         while not self._closing:
             try:
-                reader, writer = await asyncio.open_connection(self.host, self.port)
+                if self.local_db is not None:
+                    reader, writer = self.local_db.open_local()
+                else:
+                    reader, writer = await asyncio.open_connection(self.host, self.port)
             except OSError as exc:
                 log.debug("%s: cannot connect to %s:%d: %s", self.name, self.host, self.port, exc)
             else:
