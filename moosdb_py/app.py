@@ -16,7 +16,7 @@ import sys
 import time as _time
 from pathlib import Path
 
-from .client import MOOSClient
+from .client import MOOSClient, resolve
 from .config import Params, read_params
 from .formats import print_page, version_page
 from .message import MOOSMsg
@@ -69,6 +69,7 @@ class MOOSApp:
         self._started_mono = _time.monotonic()
         self._mail: list[MOOSMsg] = []
         self._stop: asyncio.Event | None = None
+        self._wake: asyncio.Future | None = None   # the tick's sleep, resolved early by stop()
         self._stopping = False
 
     def _find_config(self) -> ProcessConfig:
@@ -181,11 +182,7 @@ class MOOSApp:
                 if now > next_tick:
                     self.ticks_missed += int((now - next_tick) / period)
                     next_tick = now
-                try:
-                    async with asyncio.timeout(max(0.0, next_tick - _time.monotonic())):
-                        await self._stop.wait()
-                except TimeoutError:
-                    pass
+                await self._until(next_tick)
             mail, self._mail = self._mail, []
             if mail:   # mail that arrived with the stop request is still handled (pLogger writes it)
                 self.on_new_mail(mail)
@@ -197,10 +194,23 @@ class MOOSApp:
             except TimeoutError:
                 comms.cancel()
 
+    async def _until(self, when: float) -> None:
+        """Sleep until monotonic time `when` or a stop: one future and one timer a tick, the least asyncio offers."""
+        loop = asyncio.get_running_loop()
+        self._wake = wake = loop.create_future()
+        timer = loop.call_at(loop.time() + when - _time.monotonic(), resolve, wake)
+        try:
+            await wake
+        finally:
+            timer.cancel()
+            self._wake = None
+
     def stop(self) -> None:
         self._stopping = True
         if self._stop is not None:
             self._stop.set()
+        if self._wake is not None:
+            resolve(self._wake)
 
     def run(self) -> None:
         async def runner():
