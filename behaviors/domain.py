@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, model_validator
+from pydantic import BaseModel, PrivateAttr, model_validator
 
 
 class DomainVar(BaseModel):
@@ -11,6 +11,7 @@ class DomainVar(BaseModel):
     high: float
     npts: int
     optional: bool = False
+    _grid: np.ndarray | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _check(self) -> "DomainVar":
@@ -24,7 +25,12 @@ class DomainVar(BaseModel):
 
     @property
     def values(self) -> np.ndarray:
-        return self.low + np.arange(self.npts) * self.delta
+        """The grid points, built once (every ZAIC and the solver read them each helm iteration); read-only."""
+        if self._grid is None:
+            grid = self.low + np.arange(self.npts) * self.delta
+            grid.setflags(write=False)
+            self._grid = grid
+        return self._grid
 
     def index_of(self, value: float) -> int:
         """The grid index nearest a value, clipped to the domain."""
