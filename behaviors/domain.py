@@ -1,8 +1,10 @@
 """The IvP decision domain: named variables on uniform grids (`domain = name:low:high:npts`)."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-from pydantic import BaseModel, PrivateAttr, model_validator
+from pydantic import BaseModel, model_validator
 
 
 class DomainVar(BaseModel):
@@ -11,7 +13,6 @@ class DomainVar(BaseModel):
     high: float
     npts: int
     optional: bool = False
-    _grid: np.ndarray | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _check(self) -> "DomainVar":
@@ -25,18 +26,21 @@ class DomainVar(BaseModel):
 
     @property
     def values(self) -> np.ndarray:
-        """The grid points, built once (every ZAIC and the solver read them each helm iteration); read-only."""
-        if self._grid is None:
-            grid = self.low + np.arange(self.npts) * self.delta
-            grid.setflags(write=False)
-            self._grid = grid
-        return self._grid
+        """The grid points, built once per grid (every ZAIC and the solver read them each helm iteration); read-only."""
+        return _grid(self.low, self.delta, self.npts)
 
     def index_of(self, value: float) -> int:
         """The grid index nearest a value, clipped to the domain."""
         if self.npts == 1:
             return 0
         return int(np.clip(round((value - self.low) / self.delta), 0, self.npts - 1))
+
+
+@functools.lru_cache(maxsize=256)
+def _grid(low: float, delta: float, npts: int) -> np.ndarray:
+    grid = low + np.arange(npts) * delta
+    grid.setflags(write=False)
+    return grid
 
 
 class IvPDomain(BaseModel):
