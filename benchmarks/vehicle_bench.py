@@ -147,7 +147,8 @@ async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, 
                 except TimeoutError:
                     os.killpg(antler.pid, signal.SIGKILL)
                     await antler.wait()
-            await asyncio.wait(tasks, timeout=5)
+            if tasks:
+                await asyncio.wait(tasks, timeout=5)
 
 
 def main() -> None:
