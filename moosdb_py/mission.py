@@ -18,7 +18,6 @@ from pathlib import Path
 from pydantic import BaseModel, Field, PrivateAttr
 
 from .formats import FormatError, parse_bool, parse_pairs
-from .formats import parse_bool as moos_bool  # noqa: F401  (behaviors/timer_script.py imports it; it moves to formats)
 from .nsplug import preprocess
 from .source import MissionFileError, SourceLine
 

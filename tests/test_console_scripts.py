@@ -19,7 +19,7 @@ APPS = PROJECT["entry-points"]["moosdb_py.apps"]     # the MOOSApp classes pAntl
 TOOLS = {"moos-lint"}                    # a file tool, not a MOOS app: --help only
 # --version: the DB's command line is the DB core engineer's, moos-lint the newcomer engineer's and the
 # forecaster the forecaster engineer's (issue 14 asks it of them too); every other script answers it here.
-NO_VERSION_YET = {"moosdb", "MOOSDB", "moos-lint", "oilspill-forecaster"}
+NO_VERSION_YET = {"moos-lint", "oilspill-forecaster"}
 SHORT_PAGES = {"uXMS", "uPokeDB"} | {name for name in SCRIPTS if SCRIPTS[name].rpartition(":")[0] in
                                     {value.rpartition(":")[0] for value in APPS.values()}}
 NOT_DB_CLIENTS = {"oilspill-forecaster"}  # talks TCP to pPathAssign: its interface is input and output
