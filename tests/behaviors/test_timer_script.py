@@ -6,12 +6,13 @@ import random
 import re
 
 import pytest
-from helpers import SHARED, async_wait_until
+from helpers import CORPUS, async_wait_until, requires_shared
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from behaviors.logic import parse_condition
-from behaviors.timer_script import Event, RandVar, TimerScript, TimerScriptState, split_fields
+from behaviors.timer_script import Event, RandVar, TimerScript, TimerScriptState
+from moosdb_py.formats import split_fields
 from moosdb_py.antler import expanded_mission
 from moosdb_py.client import MOOSClient
 
@@ -37,7 +38,7 @@ def test_event_lines():
 @given(st.lists(st.text(alphabet='ab=" ', min_size=1, max_size=6), min_size=1, max_size=4))
 def test_split_fields_keeps_quoted_commas(parts):
     quoted = [f'"{p.replace(chr(34), "")},x"' for p in parts]
-    assert split_fields(",".join(quoted)) == [q.strip() for q in quoted if q.strip()]
+    assert [f.strip() for f in split_fields(",".join(quoted))] == [q.strip() for q in quoted if q.strip()]
 
 
 def test_events_post_in_time_order_with_types_and_macros():
@@ -142,10 +143,11 @@ def test_timer_script_app_on_the_mission_clock(moosdb_server, tmp_path):
     asyncio.run(scenario())
 
 
+@requires_shared("missions-corpus")
 def test_m2_berta_shoreside_script(tmp_path):
     """The corpus m2_berta shoreside block (nsplug'd with its launch defaults): loiter centres at
     180 s and 360 s from randvars redrawn every round, then the script starts over."""
-    folder = SHARED / "missions-corpus" / "m2_berta"
+    folder = CORPUS / "m2_berta"
     defines = {"WARP": "1", "IP_ADDR": "localhost", "MOOS_PORT": "9000", "PSHARE_PORT": "9200",
                "VNAMES": "abe:ben", "LAUNCH_GUI": "yes"}
     _, expanded = expanded_mission(folder / "meta_shoreside.moos", defines, {}, tmp_path)
