@@ -98,7 +98,9 @@ def forecast_main(argv) -> int:
 
 def push_main(argv) -> int:
     from . import operational
-    from .push import PushRejected, PushUnreachable, boundary_line, push_lines
+    from oilspill_moos.messages import boundary_line
+
+    from .push import PushRejected, PushUnreachable, push_lines
     from .readers import read_polygons
     from .boundary import outline
 

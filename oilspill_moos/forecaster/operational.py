@@ -25,7 +25,9 @@ from pathlib import Path
 from . import features as F
 from .boundary import outline
 from .kinds import DEFAULT_MODEL, KINDS, LEARNED_KINDS
-from .push import DEFAULT_HOST, DEFAULT_PORT, BoundaryPusher, PushRejected, PushUnreachable, boundary_line
+from oilspill_moos.messages import boundary_line
+
+from .push import DEFAULT_HOST, DEFAULT_PORT, BoundaryPusher, PushRejected, PushUnreachable
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 POLYGON_SUFFIXES = (".geojson", ".json", ".shp")
 

@@ -1,7 +1,8 @@
 """The forecaster -> pPathAssign boundary push (architecture doc, "The oil-spill protocol").
 
 One UTF-8 line per boundary, JSON or a plain MOOS polygon string; pPathAssign answers each line
-with ``OK <seq>`` or ``ERR <reason>``. The codec (``boundary_line``, ``parse_reply``) is pure;
+with ``OK <seq>`` or ``ERR <reason>``. The line itself is ``oilspill_moos.messages.boundary_line`` (pPathAssign reads it there too);
+``parse_reply`` is pure;
 ``BoundaryPusher`` is a thin asyncio shell that reconnects when pPathAssign restarts and sends
 the unanswered line again (a repeated boundary only re-plans the same loop, a lost one would
 leave the fleet on a stale perimeter).
@@ -9,9 +10,6 @@ leave the fleet on a stale perimeter).
 from __future__ import annotations
 
 import asyncio
-import json
-import math
-import time as _time
 from dataclasses import dataclass
 
 DEFAULT_HOST = "127.0.0.1"
@@ -24,23 +22,6 @@ class PushRejected(RuntimeError):
 
 class PushUnreachable(ConnectionError):
     """No pPathAssign answered on host:port before the deadline."""
-
-
-def boundary_line(polygon, horizon_h: float, *, time: float | None = None, crs: str = "EPSG:4326",
-                  uncertainty_m: float = 0.0, source: str = "ltc-rk4") -> bytes:
-    """Encode one boundary; ``polygon`` is a shapely Polygon or a sequence of (x, y)."""
-    coords = list(polygon.exterior.coords) if hasattr(polygon, "exterior") else list(polygon)
-    if len(coords) < 3:
-        raise ValueError(f"a boundary needs at least 3 vertices, got {len(coords)}")
-    points = [[float(x), float(y)] for x, y in coords]
-    if not all(math.isfinite(v) for p in points for v in p):
-        raise ValueError("boundary polygon holds NaN or infinite coordinates")
-    if crs not in ("EPSG:4326", "local"):
-        raise ValueError(f"crs must be 'EPSG:4326' or 'local', not {crs!r}")
-    message = {"type": "boundary", "time": _time.time() if time is None else float(time),
-               "horizon_h": float(horizon_h), "crs": crs, "polygon": points,
-               "uncertainty_m": float(uncertainty_m), "source": source}
-    return (json.dumps(message, separators=(",", ":")) + "\n").encode("utf-8")
 
 
 def parse_reply(line: bytes) -> int:

@@ -5,8 +5,8 @@ import json
 import pytest
 from shapely.geometry import Polygon
 
-from oilspill_moos.forecaster.push import (BoundaryPusher, PushRejected, PushUnreachable, boundary_line,
-                                           parse_reply)
+from oilspill_moos.forecaster.push import BoundaryPusher, PushRejected, PushUnreachable, parse_reply
+from oilspill_moos.messages import boundary_line
 
 SQUARE = Polygon([(-88.4, 28.7), (-88.3, 28.7), (-88.3, 28.8), (-88.4, 28.8)])
 

@@ -21,7 +21,8 @@ import pytest
 from browser import Browser, find_chromium
 from helpers import CORPUS, free_port, requires_shared, wait_until
 from mission_run import headless, prepare
-from oilspill_moos.forecaster.push import boundary_line, push_lines
+from oilspill_moos.forecaster.push import push_lines
+from oilspill_moos.messages import boundary_line
 from oilspill_moos.oilspill_mission import OilspillMission
 from oilspill_moos.viewer.app import viewer_beside
 
