@@ -6,9 +6,6 @@ behaviour per contact and all-stops on leaving the operating area; a running thr
 with a short comms range shows the vessels hearing each other only through uFldNodeComms, an
 out-of-range vessel retired like a silent one, and the brokers and pPathAssign carrying on.
 """
-import asyncio
-import threading
-
 import pytest
 
 from behaviors.lint import main as moos_lint
@@ -17,9 +14,9 @@ from moosdb_py.alog import read_alog
 from moosdb_py.client import MOOSClient
 from moosdb_py.mission import read_mission
 from oilspill_moos.forecaster.push import push_lines
-from oilspill_moos.oilspill_mission import MISSION_DIR, OilspillMission, Observer
+from oilspill_moos.oilspill_mission import MISSION_DIR, OilspillMission
 from oilspill_moos.response.path_assign import OIL_PATH
-from mission_run import VehicleHelm
+from mission_run import VehicleHelm, deployed
 
 VEHICLE_DEFINES = ["VNAME=abe", "START_POS=0,0", "MOOS_PORT=9001", "PSHARE_PORT=9201"]
 
@@ -101,20 +98,8 @@ def test_vessels_hear_each_other_only_in_range_and_the_fleet_carries_on(tmp_path
     mission = OilspillMission(tmp_path, vehicles=3, warp=WARP, standoff=10.0, node_timeout=40.0,
                               extra={"COMMS_RANGE": f"{COMMS_RANGE:g}", "CRITICAL_RANGE": "20", "COMMS_DROP": "20",
                                      "COMMS_SEED": "1", "CONTACT_MAX_AGE": "20"})
-    mission.start()
-    loop = asyncio.new_event_loop()
-    observer = Observer("127.0.0.1", mission.shoreside.moos_port, WARP)
     abe = VesselWatch(mission.fleet["abe"].moos_port)
-
-    async def clients():
-        await asyncio.gather(observer.client.run(), abe.client.run())
-
-    thread = threading.Thread(target=loop.run_until_complete, args=(clients(),), daemon=True)
-    thread.start()
-    try:
-        wait_until(lambda: mission.dead() or observer.vehicles_seen() >= set(mission.fleet), timeout=TIMEOUT)
-        assert not mission.dead(), f"communities stopped: {mission.dead()}"
-        asyncio.run_coroutine_threadsafe(observer.deploy(mission.fleet, TIMEOUT, mission), loop).result(TIMEOUT + 5)
+    with deployed(mission, (abe.client,), TIMEOUT) as (observer, _):
         # on the start line abe hears ben (30 m) through uFldNodeComms, never cal (60 m)
         wait_until(lambda: "ben" in abe.values("CONTACTS_LIST"), timeout=TIMEOUT)
         wait_until(lambda: any("bname=avd_ben" in e and "event=spawn" in e for e in abe.values("IVPHELM_LIFE_EVENT")),
@@ -130,11 +115,6 @@ def test_vessels_hear_each_other_only_in_range_and_the_fleet_carries_on(tmp_path
                    timeout=TIMEOUT)
         assert not observer.dropped and "planned=3" in observer.status
         assert abe.values("BHV_ERROR") == []
-    finally:
-        loop.call_soon_threadsafe(observer.client.close)
-        loop.call_soon_threadsafe(abe.client.close)
-        thread.join(timeout=5)
-        mission.stop()
     shore = read_alog(mission.alog("shoreside"))
     assert not any(total > 0 for total in shore.values("COLLISION_TOTAL"))   # posted at the first event
     assert min(v for v in shore.values("UCD_CLOSEST_RANGE") if isinstance(v, float)) > 3.0
