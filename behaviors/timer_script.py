@@ -10,14 +10,17 @@ moves mail and posts.
 """
 from __future__ import annotations
 
+import logging
 import random
 import re
 from dataclasses import dataclass, field
 
 from behaviors.logic import ConditionError, as_number, condition_variables, parse_condition
 from moosdb_py.app import MOOSApp
+from moosdb_py.formats import FormatError, parse_bool
 from moosdb_py.message import MOOSMsg
-from moosdb_py.mission import moos_bool
+
+log = logging.getLogger("uTimerScript")
 
 Post = tuple[str, str | float]
 RANDVAR_KEYS = ("at_start", "at_reset", "at_post")
@@ -154,7 +157,7 @@ class TimerScriptState:
 
     def pause(self, value: str) -> None:
         word = str(value).strip().lower()
-        self.paused = (not self.paused) if word == "toggle" else moos_bool(word)
+        self.paused = (not self.paused) if word == "toggle" else parse_bool(word)
 
     def on_mail(self, key: str, value: float | str) -> None:
         self.values[key] = value
@@ -281,7 +284,7 @@ PUBLICATIONS:
             raise ValueError(f"{self._where('upon_awake')}: {upon_awake!r} is not none, reset or restart")
         self.state = TimerScriptState(
             events, script_name=self._setting("script_name", "unnamed"),
-            paused=moos_bool(self._setting("paused", "false")),
+            paused=parse_bool(self._setting("paused", "false")),
             reset_max=None if reset_max_text in ("unlimited", "any") else int(reset_max_text), reset_time=reset_time,
             delay_start=parse_range(self._setting("delay_start", "0"), self._where("delay_start")),
             delay_reset=parse_range(self._setting("delay_reset", "0"), self._where("delay_reset")),
@@ -292,7 +295,7 @@ PUBLICATIONS:
         self.pause_var = self._setting("pause_var", "UTS_PAUSE")
         self.reset_var = self._setting("reset_var", "UTS_RESET")
         self.status_var = self._setting("status_var", "UTS_STATUS")
-        self.verbose = moos_bool(self._setting("verbose", "false"))
+        self.verbose = parse_bool(self._setting("verbose", "false"))
         self.condition_vars = condition_variables(conditions)
         self.last_step: float | None = None
         self.last_status = ""
@@ -320,7 +323,10 @@ PUBLICATIONS:
             if msg.key == self.forward_var:
                 self.state.forward(msg.value)
             elif msg.key == self.pause_var:
-                self.state.pause(str(msg.value))
+                try:
+                    self.state.pause(str(msg.value))
+                except FormatError as err:  # a bad poke is refused; the script keeps its state
+                    log.warning("%s from %s ignored: %s", self.pause_var, msg.sender, err)
             elif msg.key == self.reset_var:
                 self.state.reset()
             if msg.key in self.condition_vars and not msg.is_binary():

@@ -1,7 +1,8 @@
 """pAntler: launch a mission's MOOSDB and apps from its ANTLER block, and stop them all together.
 
-Python and C++ apps mix: a name the project implements (the `moosdb_py.apps` entry points, or one of
-its console scripts) runs the Python app with this interpreter, any other name is looked up in
+Python and C++ apps mix: a name an installed package declares (the `moosdb_py.apps` entry points for
+MOOSApp classes, `moosdb_py.programs` for other MOOS programs such as uXMS) runs the Python app with
+this interpreter, any other name is looked up in
 ExecutablePath / on PATH. Every child gets its own session, so a terminal Ctrl-C reaches only
 pAntler, which then stops each child's whole process group (SIGTERM, then SIGKILL); on Linux the
 children also get SIGTERM if pAntler itself is killed. Nothing starts when the mission cannot be
@@ -26,12 +27,13 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from .app import print_page
+from .formats import print_page, version_page
 from .mission import AntlerRun, Mission, parse_mission
 from .nsplug import parse_defines, preprocess
 from .source import MissionFileError, SourceLine
 
 APP_GROUP = "moosdb_py.apps"
+PROGRAM_GROUP = "moosdb_py.programs"
 DB_NAMES = ("MOOSDB", "moosdb")
 DB_TARGET = "moosdb_py.moosdb:main"
 DB_CONSOLE_SCRIPT = "moosdb"
@@ -114,11 +116,9 @@ def _load(target: str, check_class: bool = False):
 
 
 def python_target(name: str) -> str | None:
-    """`module:attr` of a project app named `name` (the app group first, then console scripts)."""
-    for group in (APP_GROUP, "console_scripts"):
+    """`module:attr` of the app or program an entry point names `name` (MOOSApp classes first)."""
+    for group in (APP_GROUP, PROGRAM_GROUP):
         found = list(metadata.entry_points(group=group, name=name))
-        if group == "console_scripts":
-            found = [ep for ep in found if ep.value.split(".")[0] in ("moosdb_py", "behaviors", "oilspill_moos")]
         if found:
             return found[0].value
     return None
@@ -378,12 +378,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", "--terse", action="store_true", help="do not echo the children's output")
     p.add_argument("--example", action="store_true", help="print an example ANTLER block")
     p.add_argument("--interface", action="store_true", help="print what pAntler subscribes to and publishes")
+    p.add_argument("--version", action="version", version=version_page("pAntler"), help="print the release")
     return p
 
 
 def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, str]]:
     """MOOS's `--Name=value` global overrides, apart from pAntler's own options (anywhere on the line)."""
-    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help"}
+    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help", "version"}
     rest, overrides = [], {}
     for arg in argv:
         match = re.fullmatch(r"--([\w-]+)=(.*)", arg)

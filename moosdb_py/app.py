@@ -17,6 +17,8 @@ import time as _time
 from pathlib import Path
 
 from .client import MOOSClient
+from .config import Params, read_params
+from .formats import print_page, version_page
 from .message import MOOSMsg
 from .mission import Mission, ProcessConfig, Where, db_address, read_mission
 from .source import MissionFileError
@@ -26,6 +28,7 @@ log = logging.getLogger("moosdb_py.app")
 DEFAULT_APP_TICK = 5.0
 DEFAULT_COMMS_TICK = 5.0
 STATUS_PERIOD = 2.0
+RETRY_NOTICE_PERIOD = 10.0   # seconds between "connecting ... retrying" lines while no DB answers
 USAGE_OPTIONS = """\
 Options:
   --moos_file=FILE                 mission file (instead of the first positional argument)
@@ -34,7 +37,8 @@ Options:
   --moos_port=PORT                 DB port (default: ServerPort, else 9000)
   --moos_time_warp=WARP            time warp (default: MOOSTimeWarp, else 1)
   --verbose                        log connections and warnings
-  --help, --example, --interface   this text / a ProcessConfig block / variables used"""
+  --help, --example, --interface   this text / a ProcessConfig block / variables used (also -h, -e, -i)
+  --version                        the app's name and release"""
 
 
 class MOOSApp:
@@ -43,12 +47,15 @@ class MOOSApp:
     default_name = "pMyApp"
     example_config = ""
     interface = ""
+    parameters: Params | None = None   # the app's ProcessConfig parameters; None: the app reads its block itself
 
     def __init__(self, mission_file: str | Path | None = None, name: str | None = None, *,
                  host: str | None = None, port: int | None = None, time_warp: float | None = None):
         self.name = name or self.default_name
         self.mission: Mission | None = read_mission(mission_file) if mission_file else None
         self.config: ProcessConfig = self._find_config()
+        if self.parameters is not None:
+            self.parameters.warn_unhandled(self.config)
         host, port, self.time_warp = db_address(self.mission, host, port, time_warp)
         self.app_tick = self._positive("AppTick", DEFAULT_APP_TICK)
         self.comms_tick = self._positive("CommsTick", DEFAULT_COMMS_TICK)   # read as MOOS does; async comms ignore it
@@ -82,6 +89,10 @@ class MOOSApp:
         if value <= 0:
             raise entry.source.error(f"{key} = {entry.value!r} is not a positive number")
         return value
+
+    def read_settings(self) -> dict:
+        """Every declared parameter's typed value (or default); a bad value raises naming its file:line."""
+        return read_params(self.config, self.parameters.read)
 
     # -- hooks for subclasses ------------------------------------------------------------------
     def on_startup(self) -> None:
@@ -142,9 +153,14 @@ class MOOSApp:
         self.on_startup()
         comms = asyncio.create_task(self.client.run(), name=f"{self.name} comms")
         try:
+            next_notice = 0.0
             while not self._stop.is_set() and not await self.client.wait_connected(0.5):
                 if comms.done():
                     raise ConnectionError(f"{self.name}: {self.client.poisoned or 'cannot connect'}")
+                if _time.monotonic() >= next_notice:   # say so, as MOOS apps do, rather than wait silently
+                    next_notice = _time.monotonic() + RETRY_NOTICE_PERIOD
+                    print(f"{self.name}: connecting to {self.client.host}:{self.client.port} ... retrying",
+                          file=sys.stderr, flush=True)
             next_tick = next_status = _time.monotonic()
             while not self._stop.is_set():
                 if comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
@@ -205,6 +221,9 @@ class MOOSApp:
         pages = {"--help": cls.usage, "-h": cls.usage, "--example": lambda: cls.example_config,
                  "-e": lambda: cls.example_config, "--interface": lambda: cls.interface, "-i": lambda: cls.interface}
         for arg in argv:
+            if arg == "--version":
+                print_page(version_page(cls.default_name))
+                return 0
             if arg in pages:
                 text = pages[arg]()
                 print_page((text if arg in ("--help", "-h") else inspect.cleandoc(text)) + "\n")
@@ -237,16 +256,6 @@ class MOOSApp:
         except KeyboardInterrupt:
             pass
         return 0
-
-
-def print_page(text: str) -> None:
-    """Print a --help/--example/--interface page; a reader that stops early (`| head`) is no error."""
-    try:
-        sys.stdout.write(text)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        # Python flushes stdout again at exit: point it at /dev/null so that flush cannot fail too.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _memory_kb() -> int:

@@ -29,10 +29,12 @@ The rules chosen (docs/formats.md says the same):
 from __future__ import annotations
 
 import functools
+import math
 import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
+from importlib import metadata
 
 
 class FormatError(ValueError):
@@ -44,6 +46,7 @@ FALSE_WORDS = frozenset({"false", "off"})
 
 # MOOS's numeric strings: what atof reads completely; Python's extras (`1_0`, `nan`, `inf`) are not numbers here.
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_NON_FINITE = re.compile(r"[+-]?(?:nan|inf|infinity)\Z", re.IGNORECASE)
 
 
 def is_number(text: str) -> bool:
@@ -53,10 +56,10 @@ def is_number(text: str) -> bool:
 def parse_number(text: str) -> float:
     """A MOOS number; FormatError for anything else, infinities included."""
     word = str(text).strip()
-    if not _NUMBER.match(word):
+    value = float(word) if _NUMBER.match(word) or _NON_FINITE.match(word) else None
+    if value is None:
         raise FormatError(f"expected a number, got {text!r}")
-    value = float(word)
-    if value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):
         raise FormatError(f"expected a finite number, got {text!r}")
     return value
 
@@ -114,7 +117,7 @@ def parse_pairs(text: str, sep: str = ",") -> dict[str, str]:
             continue
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
-            raise FormatError(f"{item.strip()!r} is not a key=value pair")
+            raise FormatError(f"{item.strip()!r} is not key=value")
         pairs[key.strip().lower()] = value.strip()
     return pairs
 
@@ -200,6 +203,15 @@ def wild_match(pattern: str, text: str) -> bool:
 
 def is_pattern(text: str) -> bool:
     return "*" in text or "?" in text
+
+
+def version_page(name: str) -> str:
+    """What `APP --version` prints: the app's MOOS name and this package's release."""
+    try:
+        release = metadata.version("oilspill-moos")
+    except metadata.PackageNotFoundError:   # run from a source tree that was never installed
+        release = "unknown"
+    return f"{name} {release} (oilspill-moos: the MOOS-IvP app in Python)\n"
 
 
 def print_page(text: str) -> None:

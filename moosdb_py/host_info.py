@@ -13,6 +13,8 @@ import struct
 from dataclasses import dataclass, fields
 
 from .app import MOOSApp
+from .config import Param, Params
+from .formats import FormatError, parse_pairs
 from .message import MOOSMsg
 
 
@@ -44,14 +46,14 @@ class HostRecord:
         of `community`, the only required field; unknown fields are skipped."""
         names = {f.name for f in fields(cls)}
         values: dict[str, str] = {}
-        for part in filter(str.strip, text.split(",")):
-            key, sep, value = part.partition("=")
-            if not sep:
-                raise ValueError(f"host record: {part.strip()!r} is not a key=value pair")
-            key = key.strip().lower()
+        try:
+            pairs = parse_pairs(text)
+        except FormatError as err:
+            raise ValueError(f"host record: {err}") from None
+        for key, value in pairs.items():
             key = "community" if key == "vname" else key
             if key in names:
-                values[key] = value.strip()
+                values[key] = value
         if not values.get("community"):
             raise ValueError(f"host record without community: '{text}'")
         return cls(**values)
@@ -116,6 +118,10 @@ class HostInfo(MOOSApp):
     """
 
     default_name = "pHostInfo"
+    parameters = Params(
+        Param("default_hostip", str, "localhost", "address used when no non-loopback interface has one"),
+        Param("default_hostip_force", str, "", "address used always, whatever the interfaces say"),
+    )
     example_config = """\
 ProcessConfig = pHostInfo
 {
@@ -142,9 +148,8 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        force = (self.config.get("default_hostip_force") or "").strip()
-        default = (self.config.get("default_hostip") or "localhost").strip()
-        self.host_ip = choose_host_ip(interface_addresses(), default, force)
+        v = self.read_settings()
+        self.host_ip = choose_host_ip(interface_addresses(), v["default_hostip"], v["default_hostip_force"])
         mission = self.mission
         self.record = HostRecord(community=mission.community if mission else self.name,
                                  hostip=self.host_ip.best,

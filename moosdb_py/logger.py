@@ -15,18 +15,29 @@ from pathlib import Path
 
 from .alog import AlogWriter, alog_header, log_root_name
 from .app import MOOSApp
-from .mission import ConfigEntry, ProcessConfig, moos_bool
-from .moosdb import wild_match
+from .config import Param, Params, read_params
+from .formats import parse_bool, wild_match
+from .mission import ConfigEntry, ProcessConfig
 
 ALWAYS_OMITTED = ("MISSION_FILE",)
 CMD_VAR = "PLOGGER_CMD"
-KNOWN_KEYS = frozenset({
-    "file", "path", "filetimestamp", "asynclog", "synclog", "log", "wildcardlogging", "wildcardpattern",
-    "wildcardomitpattern", "wildcardexclusionlog", "logauxsrc", "doubleprecision", "markexternals",
-    "markdatatype", "utclogdirectories",
-    # handled by every MOOS / appcasting app
-    "apptick", "commstick", "maxapptick", "iteratemode", "sortmailbytime", "catchcommandmessages",
-    "term_reporting", "max_appcast_events", "max_appcast_run_warnings", "app_logging"})
+LOGGER_PARAMS = Params(
+    Param("File", str, "MOOSLog", "stem of the log folder and file names"),
+    Param("PATH", str, "./", "folder the log folder is made in"),
+    Param("FileTimeStamp", bool, True, "append _D_M_YYYY_____hh_mm_ss to the stem"),
+    Param("UTCLogDirectories", bool, False, "time stamp in UTC instead of local time"),
+    Param("AsyncLog", bool, True, "write the .alog, one line per message"),
+    Param("SyncLog", str, "false @ 1", "`bool @ period`: write the .slog table every period seconds"),
+    Param("LogAuxSrc", bool, False, "source column is source:aux"),
+    Param("MarkExternals", bool, False, "append @community to the source of foreign messages"),
+    Param("MarkDataType", bool, False, "prefix values with D: or S:"),
+    Param("DoublePrecision", int, 5, "decimals of logged doubles, 0 to 15"),
+    Param("Log", list, [], "`VAR @ period [NOSYNC] [MONITOR]` (repeatable); MONITOR also prints each value"),
+    Param("WildCardLogging", bool, False, "log every variable"),
+    Param("WildCardPattern", list, [], "variable patterns the wildcard takes (default *)"),
+    Param("WildCardOmitPattern", list, [], "patterns left out of the wildcard (repeatable, comma lists allowed)"),
+    Param("WildCardExclusionLog", bool, False, "write omitted variables to the .xlog"),
+)
 log = logging.getLogger("moosdb_py.logger")
 
 
@@ -61,13 +72,8 @@ def parse_log_line(entry: ConfigEntry) -> LogRequest:
     return LogRequest(var, period, "NOSYNC" not in flags, "MONITOR" in flags)
 
 
-def _bool(block: ProcessConfig, key: str, default: bool) -> bool:
-    value = block.get(key)
-    return default if value is None else moos_bool(value.split("@")[0])
-
-
-def _patterns(block: ProcessConfig, key: str) -> list[str]:
-    return [p.strip() for value in block.get_all(key) for p in value.split(",") if p.strip()]
+def _patterns(values: list[str]) -> list[str]:
+    return [p.strip() for value in values for p in value.split(",") if p.strip()]
 
 
 @dataclass
@@ -97,30 +103,29 @@ class LoggerConfig:
         config = cls()
         if block is None:
             return config
-        config.file = block.get("File", config.file)
-        config.path = block.get("PATH", config.path)
-        config.file_timestamp = _bool(block, "FileTimeStamp", True)
-        config.async_log = _bool(block, "AsyncLog", True)
-        config.sync_log = _bool(block, "SyncLog", False)
+        v = read_params(block, LOGGER_PARAMS.read)
+        config.file, config.path = v["file"], v["path"]
+        config.file_timestamp, config.async_log = v["filetimestamp"], v["asynclog"]
         sync = block.entry("SyncLog")
-        if sync is not None and "@" in sync.value:
-            config.sync_period = _number(sync, sync.value.split("@")[1])
+        if sync is not None:
+            switch, at, period = sync.value.partition("@")
+            try:
+                config.sync_log = parse_bool(switch)
+            except ValueError as err:
+                raise sync.source.error(f"SyncLog = '{sync.value}': {err}") from None
+            if at:
+                config.sync_period = _number(sync, period)
         config.logs = [parse_log_line(e) for e in block.entries if e.key.lower() == "log"]
-        config.wildcard_logging = _bool(block, "WildCardLogging", False)
-        config.wildcard_patterns = _patterns(block, "WildCardPattern") or ["*"]
-        config.wildcard_omit = _patterns(block, "WildCardOmitPattern")
-        config.wildcard_exclusion_log = _bool(block, "WildCardExclusionLog", False)
-        config.log_aux_src = _bool(block, "LogAuxSrc", False)
-        config.mark_externals = _bool(block, "MarkExternals", False)
-        config.mark_data_type = _bool(block, "MarkDataType", False)
-        config.utc_log_directories = _bool(block, "UTCLogDirectories", False)
-        config.unhandled = [f"{e.source}: unhandled parameter {e.key!r}" for e in block.entries
-                            if e.key.lower() not in KNOWN_KEYS]
-        precision = block.entry("DoublePrecision")
-        if precision is not None:
-            config.double_precision = int(_number(precision, precision.value))
-            if not 0 <= config.double_precision <= 15:
-                raise precision.source.error("DoublePrecision must be between 0 and 15")
+        config.wildcard_logging = v["wildcardlogging"]
+        config.wildcard_patterns = _patterns(v["wildcardpattern"]) or ["*"]
+        config.wildcard_omit = _patterns(v["wildcardomitpattern"])
+        config.wildcard_exclusion_log = v["wildcardexclusionlog"]
+        config.log_aux_src, config.mark_externals = v["logauxsrc"], v["markexternals"]
+        config.mark_data_type, config.utc_log_directories = v["markdatatype"], v["utclogdirectories"]
+        config.double_precision = v["doubleprecision"]
+        if not 0 <= config.double_precision <= 15:
+            raise block.entry("DoublePrecision").source.error("DoublePrecision must be between 0 and 15")
+        config.unhandled = LOGGER_PARAMS.unhandled(block)
         return config
 
     def omitted(self, var: str) -> bool:
@@ -182,6 +187,7 @@ class Logger(MOOSApp):
     """
 
     default_name = "pLogger"
+    parameters = LOGGER_PARAMS
     alog: AlogWriter | None = None     # files are opened in on_startup
     xlog: AlogWriter | None = None
     slog: SyncLog | None = None
@@ -220,8 +226,6 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         self.settings = LoggerConfig.from_block(self.config)
-        for line in self.settings.unhandled:
-            log.warning("%s", line)
         self.monitored = {r.var for r in self.settings.logs if r.monitor}
         self._wanted: dict[str, bool] = {}   # settings.wanted per variable: asked once, not for every message
         self.lines_written = 0

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, Field, PrivateAttr
 
+from .formats import FormatError, parse_bool, parse_pairs
 from .nsplug import preprocess
 from .source import MissionFileError, SourceLine
 
@@ -89,11 +90,17 @@ class AntlerRun(BaseModel):
 
     @property
     def new_console(self) -> bool:
-        return moos_bool(self.options.get("newconsole", "false"))
+        return self._option_bool("newconsole")
 
     @property
     def inhibit_moos_params(self) -> bool:
-        return moos_bool(self.options.get("inhibitmoosparams", "false"))
+        return self._option_bool("inhibitmoosparams")
+
+    def _option_bool(self, key: str) -> bool:
+        try:
+            return parse_bool(self.options.get(key, "false"))
+        except ValueError as err:
+            raise self.source.error(f"Run = {self.exe}: {key}: {err}") from None
 
     @property
     def path(self) -> str | None:
@@ -188,14 +195,6 @@ def add_db_arguments(parser, warp_help: str) -> None:
     parser.add_argument("--serverport", "--port", "--moos_port", dest="port", type=int,
                         help="MOOSDB port (default: mission or 9000)")
     parser.add_argument("--moos_time_warp", "--warp", dest="time_warp", type=float, help=warp_help)
-
-
-def moos_bool(value: str) -> bool:
-    """MOOS booleans: `TRUE` in any case, or a number > 0."""
-    try:
-        return float(value) > 0
-    except ValueError:
-        return value.strip().lower() == "true"
 
 
 def _port(value: str) -> int:
@@ -356,12 +355,10 @@ def _run_line(block: ProcessConfig, line: ConfigEntry) -> AntlerRun:
     if "@" in options_text or "~" in alias or "@" in alias:
         raise line.source.error(f"Run line has '@' or '~' in the wrong place: 'Run = {line.value}' "
                                 "(expected Run = <exe> [@ key=value, ...] [~ MOOSName])")
-    options: dict[str, str] = {}
-    for option in filter(None, options_text.split(",")):
-        key, eq, value = option.partition("=")
-        if not eq or not key:
-            raise line.source.error(f"Run option '{option}' is not key=value: 'Run = {line.value}'")
-        options[key.lower()] = value
+    try:
+        options = parse_pairs(options_text)
+    except FormatError as err:
+        raise line.source.error(f"Run option {err}: 'Run = {line.value}'") from None
     extra: list[str] = []
     if "extraprocessparams" in options:
         params = block.get(options["extraprocessparams"])

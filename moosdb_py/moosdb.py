@@ -16,10 +16,9 @@ import sys
 from collections.abc import Iterable
 
 from . import codec
-from .app import print_page
 from .db_core import (ABORT, CLOSE, DEFAULT_CLIENT_TIMEOUT, DEFAULT_COMMUNITY, DEFAULT_MAX_QUEUE, REFRESH_PERIOD,
                       DBClient, DBVar, MOOSDBCore, Outgoing)
-from .formats import wild_match  # noqa: F401  (uXMS, pLogger and pShare still import it from here)
+from .formats import print_page, version_page
 from .message import moos_time
 
 log = logging.getLogger("moosdb")
@@ -182,6 +181,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="log every connection and rejected write")
     p.add_argument("--example", action="store_true", help="print the mission globals the DB reads")
     p.add_argument("--interface", action="store_true", help="print what the DB publishes")
+    p.add_argument("--version", action="version", version=version_page("MOOSDB"), help="print the release")
     return p
 
 

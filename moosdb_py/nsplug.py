@@ -25,6 +25,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .formats import print_page, version_page
 from .source import MissionFileError, SourceLine
 
 MAX_SUBSTITUTIONS = 100
@@ -305,6 +306,25 @@ def read_macro_file(path: Path) -> dict[str, str | None]:
     return parse_defines(t for t in lines if t and not t.startswith(("#", "//")))
 
 
+EXAMPLE = """\
+// meta_vehicle.moos: expanded with  nsplug meta_vehicle.moos targ_abe.moos -f VNAME=abe PORT=9001
+ServerPort = $(PORT)
+Community  = $(VNAME)
+// another template, searched in the template's folder and the --path / -p folders
+#include plug_origin_warp.moos
+#ifdef VNAME abe
+  START_POS = 0,-20
+#else
+  START_POS = 50,-20
+#endif
+"""
+INTERFACE = """\
+nsplug is a preprocessor, not a MOOS client: it subscribes to nothing and publishes nothing.
+It reads a template (macros $(NAME) and %(NAME), #include, #define, #ifdef/#ifndef/#else/#endif)
+and writes the expanded file, or prints it with -t.
+"""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="nsplug", description="Expand an nsplug template (meta_*.moos/.bhv) "
                                 "as MOOS-IvP's nsplug does: nsplug infile outfile [options] [MACRO=value ...]")
@@ -321,10 +341,18 @@ def _parser() -> argparse.ArgumentParser:
                    help="an include folder (repeatable; unlike MOOS-IvP's -p it consumes its argument)")
     p.add_argument("--tag", help="expand only this <tag> section of the input")
     p.add_argument("--macros", type=Path, help="a file of NAME=value lines")
+    p.add_argument("--example", action="store_true", help="print an example template and its command line")
+    p.add_argument("--interface", action="store_true", help="print what nsplug reads and writes")
+    p.add_argument("--version", action="version", version=version_page("nsplug"), help="print the release")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    for page, text in (("--example", EXAMPLE), ("--interface", INTERFACE)):
+        if page in argv:   # before parsing: these need no template file
+            print_page(text)
+            return 0
     args = _parser().parse_intermixed_args(argv)
     words = list(args.words)
     out = None if args.terminal else (Path(words.pop(0)) if words else None)

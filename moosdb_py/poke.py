@@ -16,8 +16,8 @@ import asyncio
 import sys
 from dataclasses import dataclass
 
-from .app import print_page
 from .client import MOOSClient
+from .formats import print_page, version_page
 from .message import MOOSMsg
 from .mission import add_db_arguments, db_address, read_mission
 from .source import MissionFileError
@@ -83,8 +83,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT,
                    help="seconds to wait for the DB (default 5)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing when all went well")
-    p.add_argument("--example", action="store_true", help="print an example uPokeDB config block")
-    p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("-e", "--example", action="store_true", help="print an example uPokeDB config block")
+    p.add_argument("-i", "--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("--version", action="version", version=version_page("uPokeDB"), help="print the release")
     return p
 
 

@@ -6,12 +6,13 @@ mail and posts.
 """
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass, field
 
 from .app import MOOSApp
+from .config import Param, Params
+from .formats import wild_match
 from .message import MOOSMsg
-from .mission import Mission, moos_bool
+from .mission import Mission
 
 DB_NAMES = {"MOOSDB", "moosdb"}
 OUTPUTS = ("PROC_WATCH_SUMMARY", "PROC_WATCH_EVENT", "PROC_WATCH_FULL_SUMMARY", "PROC_WATCH_TIME_WARP",
@@ -23,7 +24,7 @@ Post = tuple[str, str | float]
 
 def matches(name: str, pattern: str) -> bool:
     """`uXMS*` matches every name starting uXMS; other patterns match exactly (case-sensitive)."""
-    return fnmatch.fnmatchcase(name, pattern) if pattern.endswith("*") else name == pattern
+    return wild_match(pattern, name) if pattern.endswith("*") else name == pattern
 
 
 @dataclass
@@ -119,6 +120,17 @@ def parse_mapping(text: str, where: str) -> tuple[str, str]:
     return old, new
 
 
+WATCH_PARAMS = Params(
+    Param("watch_all", str, "true", "true (every client seen), antler (the ANTLER Run list) or false"),
+    Param("watch", list, [], "a process that must be there (repeatable; NAME* is a prefix)"),
+    Param("nowatch", list, [], "a process never watched (repeatable; NAME* is a prefix)"),
+    Param("allow_retractions", bool, True, "a process that comes back leaves the AWOL list"),
+    Param("summary_wait", float, DEFAULT_SUMMARY_WAIT, "seconds between repeats of an unchanged summary; -1: on "
+                                                       "change only"),
+    Param("post_mapping", list, [], "`OUTPUT, NEW_NAME`: post an output under another name (repeatable)"),
+)
+
+
 class ProcessWatch(MOOSApp):
     """uProcessWatch: watches the MOOSDB's client list (DB_CLIENTS) and reports missing processes.
 
@@ -129,6 +141,7 @@ class ProcessWatch(MOOSApp):
     """
 
     default_name = "uProcessWatch"
+    parameters = WATCH_PARAMS
     example_config = """\
 ProcessConfig = uProcessWatch
 {
@@ -160,26 +173,18 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        watch_all = (self.config.get("watch_all") or "true").strip().lower()
+        v = self.read_settings()
+        watch_all = v["watch_all"].lower()
         if watch_all not in ("true", "false", "antler"):
-            raise self._error("watch_all", f"watch_all = {watch_all!r}: expected true, false or antler")
-        watch = [w.strip() for w in self.config.get_all("watch") if w.strip()]
-        nowatch = [w.strip() for w in self.config.get_all("nowatch") if w.strip()]
+            raise self.config.entry("watch_all").source.error(
+                f"watch_all = {watch_all!r}: expected true, false or antler")
+        watch, nowatch = v["watch"], v["nowatch"]
         if watch_all == "antler":
             watch += [n for n in antler_names(self.mission) if n not in watch]
-        try:
-            summary_wait = float(self.config.get("summary_wait") or DEFAULT_SUMMARY_WAIT)
-        except ValueError:
-            raise self._error("summary_wait", "summary_wait is not a number") from None
-        self.state = ProcessWatchState(self.name, watch, watch_all == "true", nowatch,
-                                       moos_bool(self.config.get("allow_retractions") or "true"), summary_wait)
+        self.state = ProcessWatchState(self.name, watch, watch_all == "true", nowatch, v["allow_retractions"],
+                                       v["summary_wait"])
         self.state.watched = {n: s for n, s in self.state.watched.items() if not self.state.excluded(n)}
-        self.mapping = dict(parse_mapping(text, f"{self.config.source}: {self.name}")
-                            for text in self.config.get_all("post_mapping"))
-
-    def _error(self, key: str, message: str) -> Exception:
-        entry = self.config.entry(key)
-        return entry.source.error(message) if entry is not None else ValueError(message)
+        self.mapping = dict(parse_mapping(text, f"{self.config.source}: {self.name}") for text in v["post_mapping"])
 
     def post(self, posts: list[Post]) -> None:
         for key, value in posts:

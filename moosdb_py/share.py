@@ -17,7 +17,8 @@ from dataclasses import dataclass, field, replace
 from moosdb_py.app import MOOSApp
 from moosdb_py.codec import CodecError, decode_message, encode_message
 from moosdb_py.message import NOTIFY, MOOSMsg
-from moosdb_py.moosdb import wild_match
+from moosdb_py.config import Param, Params
+from moosdb_py.formats import FormatError, parse_pairs, wild_match
 
 log = logging.getLogger(__name__)
 
@@ -27,8 +28,13 @@ DEFAULT_MULTICAST_BASE_PORT = 24460
 MULTICAST_CHANNELS = 256
 KNOWN_OUTPUT_FIELDS = {"src_name", "dest_name", "route", "frequency", "cmd"}
 KNOWN_INPUT_FIELDS = {"route", "cmd"}
-CONFIG_KEYS = {"input", "output", "multicast_address", "multicast_base_port",
-               "apptick", "commstick", "maxapptick", "iteratemode", "sortmailbytime", "catchcommandmessages"}
+SHARE_PARAMS = Params(
+    Param("input", list, [], "`route = host:port[ & ...]`: listen for other communities' datagrams (repeatable)"),
+    Param("output", list, [], "`src_name = X, dest_name = Y, route = host:port[ & ...], frequency = Hz` or "
+                              "`X->Y:host:port@Hz` (repeatable)"),
+    Param("multicast_address", str, DEFAULT_MULTICAST_ADDRESS, "the group multicast_N routes use"),
+    Param("multicast_base_port", str, str(DEFAULT_MULTICAST_BASE_PORT), "multicast_N is this port + N"),
+)
 
 
 class ShareConfigError(ValueError):
@@ -106,17 +112,11 @@ def parse_route(text: str, multicast_address: str = DEFAULT_MULTICAST_ADDRESS,
 
 def _fields(text: str, known: set[str], warnings: list[str]) -> dict[str, str]:
     """`a=1,b=2` with every blank removed, as MOOS config lines reach an app."""
-    pairs: dict[str, str] = {}
-    for part in "".join(text.split()).split(","):
-        if not part:
-            continue
-        key, sep, value = part.partition("=")
-        if not sep:
-            raise ShareConfigError(f"'{part}' is not key=value in '{text}'")
-        key = key.lower()
-        if key not in known:
-            warnings.append(f"'{key}' is not a pShare field; ignored in '{text}'")
-        pairs[key] = value
+    try:
+        pairs = parse_pairs("".join(text.split()))
+    except FormatError as err:
+        raise ShareConfigError(f"{err} in '{text}'") from None
+    warnings += [f"'{key}' is not a pShare field; ignored in '{text}'" for key in pairs if key not in known]
     return pairs
 
 
@@ -339,6 +339,7 @@ class Share(MOOSApp):
     """
 
     default_name = "pShare"
+    parameters = SHARE_PARAMS
     example_config = """\
 ProcessConfig = pShare
 {
@@ -380,6 +381,12 @@ PUBLICATIONS:
         """The MOOS command line, plus pShare's `-o=X->Y:host:port,...` and `-i=host:port,...` routes."""
         argv = sys.argv[1:] if argv is None else list(argv)
         switches = tuple(a for a in argv if a.partition("=")[0] in ("-o", "-i", "--output", "--input"))
+        bare = [a.partition("=")[0] for a in switches if not a.partition("=")[2].strip()]
+        if bare:   # `-i` alone would otherwise start a pShare that listens nowhere
+            example = "-i=localhost:9201" if bare[0] in ("-i", "--input") else "-o=X->Y:localhost:9200"
+            print(f"{cls.default_name}: {bare[0]} needs routes, e.g. {example} "
+                  "(for the interface page: --interface)", file=sys.stderr)
+            return 1
         return super().main([a for a in argv if a not in switches], command_line=switches)
 
     def __init__(self, *args, **kwargs):
@@ -420,8 +427,6 @@ PUBLICATIONS:
                     apply(item if flag in ("-o", "--output") else f"route={item}", warnings)
                 except (ShareConfigError, OSError) as exc:
                     raise ValueError(f"command line {flag}: {exc}") from None
-        warnings += [f"{e.source}: unhandled parameter {e.key!r}" for e in cfg.entries
-                     if e.key.lower() not in CONFIG_KEYS]
         for warning in warnings:
             log.warning("%s: %s", self.name, warning)
 

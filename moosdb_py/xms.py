@@ -13,20 +13,15 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from .app import print_page
 from .client import MOOSClient
 from .message import SERVER_REQUEST_ID, MOOSMsg
-from .mission import Mission, add_db_arguments, db_address, moos_bool, read_mission
-from .moosdb import wild_match
+from .formats import is_pattern, parse_bool, print_page, version_page, wild_match
+from .mission import Mission, add_db_arguments, db_address, read_mission
 from .source import MissionFileError
 
 SHOW_FIELDS = ("source", "time", "community", "aux")
 NOT_SET = "n/a"
 DEFAULT_WAIT = 2.0
-
-
-def is_pattern(name: str) -> bool:
-    return "*" in name or "?" in name
 
 
 def value_text(msg: MOOSMsg, trunc: int = 0) -> str:
@@ -46,13 +41,22 @@ class Scope:
 
     names: list[str]                                   # exact names and wildcard patterns
     sources: list[str] = field(default_factory=list)   # source patterns; empty = any
-    start: float = 0.0
+    start: float = 0.0        # (T)ime counts from here: the DB's start, as the C++ uXMS's time column
+    db_started: bool = False  # start comes from DB_UPTIME (until then: our own start on the DB's clock)
     latest: dict[str, MOOSMsg] = field(default_factory=dict)
 
     def watches(self, msg: MOOSMsg) -> bool:
         if self.sources and not any(wild_match(p, msg.source) for p in self.sources):
             return False
         return any(wild_match(n, msg.key) if is_pattern(n) else n == msg.key for n in self.names)
+
+    def note_db_start(self, mail: list[MOOSMsg]) -> None:
+        """The first DB_UPTIME fixes `start` at the DB's start; call it before the mail is shown.
+
+        (The DB's answer to ALL carries its variables stamped with their age, not their time: skipped.)"""
+        uptime = next((m for m in mail if m.key == "DB_UPTIME" and m.is_double() and m.id != SERVER_REQUEST_ID), None)
+        if uptime is not None and not self.db_started:
+            self.start, self.db_started = uptime.time - uptime.double, True
 
     def take(self, mail: list[MOOSMsg]) -> list[MOOSMsg]:
         """Keep the watched messages; return them (for history and events output)."""
@@ -132,8 +136,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-c", "--clean", action="store_true", help="ignore the var = lines of the uXMS block")
     add_db_arguments(p, "our time warp (default: mission or 1); (T)ime counts on the DB's clock whatever it is")
     p.add_argument("--alias", default="uXMS", help="MOOS name of this client (default uXMS)")
-    p.add_argument("--example", action="store_true", help="print an example uXMS config block")
-    p.add_argument("--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("-e", "--example", action="store_true", help="print an example uXMS config block")
+    p.add_argument("-i", "--interface", action="store_true", help="print subscriptions and publications")
+    p.add_argument("--version", action="version", version=version_page("uXMS"), help="print the release")
     return p
 
 
@@ -189,7 +194,7 @@ def options_from(args: argparse.Namespace) -> Options:
         for key, column in (("display_source", "source"), ("display_time", "time"),
                             ("display_community", "community"), ("display_aux_source", "aux")):
             if block.get(key) is not None:
-                (show.add if moos_bool(block.get(key)) else show.discard)(column)
+                (show.add if parse_bool(block.get(key)) else show.discard)(column)
     if args.all:
         names.append("*")
     if history and history not in names:
@@ -212,6 +217,7 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
         print(line, file=out, flush=True)
 
     def on_mail(mail: list[MOOSMsg]) -> None:
+        scope.note_db_start(mail)
         for msg in mail:
             if msg.id == SERVER_REQUEST_ID:
                 if opts.history and not answered.is_set():
@@ -227,8 +233,9 @@ async def scope_main(args: argparse.Namespace, opts: Options, out=None) -> int:
                 changed.set()
 
     def on_connect() -> None:
-        if not scope.start:   # (T)ime counts from our start on the DB's clock (see uPokeDB), whatever our warp
+        if not scope.start:   # until DB_UPTIME says when the DB started: our start on the DB's clock
             scope.start = client.moos_time() + client.db_skew
+        client.register("DB_UPTIME")
         for name in opts.names:
             if is_pattern(name):
                 client.register_wildcard(name, "*")

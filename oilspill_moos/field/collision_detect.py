@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from behaviors.flags import FlagError, FlagSpec, parse_flag
 from behaviors.logic import Condition, ConditionError, condition_variables, parse_condition
 from moosdb_py.formats import format_number
-from oilspill_moos.app_config import ConfigValueError, config_bool, config_float, read_params, warn_unhandled
+from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import NodeRecord, NodeRecordError
@@ -70,30 +70,25 @@ class CollisionParams:
 
     @classmethod
     def from_config(cls, cfg) -> "CollisionParams":
-        get_all = cfg.get_all if hasattr(cfg, "get_all") else (lambda k: [cfg[k]] if k in cfg else [])
-        params = cls(encounter_range=config_float(cfg, "encounter_range", 20.0, lo=0.0),
-                     near_miss_range=config_float(cfg, "near_miss_range", 6.0, lo=0.0),
-                     collision_range=config_float(cfg, "collision_range", 3.0, lo=0.0),
-                     post_closest_range=config_bool(cfg, "post_closest_range", False),
-                     report_all_encounters=config_bool(cfg, "report_all_encounters", False),
-                     pulse_render=config_bool(cfg, "pulse_render", True),
-                     pulse_range=config_float(cfg, "pulse_range", 20.0, lo=0.0),
-                     pulse_duration=config_float(cfg, "pulse_duration", 10.0, lo=0.0))
+        v = COLLISION_PARAMS.read(cfg)
+        same = ("encounter_range", "near_miss_range", "collision_range", "post_closest_range", "report_all_encounters",
+                "pulse_render", "pulse_range", "pulse_duration")
+        params = cls(**{name: v[name] for name in same})
         for rank in RANKS:
-            for text in get_all(f"{rank}_flag"):
+            for text in v[f"{rank}_flag"]:
                 try:
                     flag = parse_flag(text)
                 except FlagError as exc:
                     raise ConfigValueError(f"{rank}_flag", str(exc)) from None
                 if flag is not None:
                     params.flags[rank].append(flag)
-        for text in get_all("condition"):
+        for text in v["condition"]:
             try:
                 params.conditions.append(parse_condition(text))
             except ConditionError as exc:
                 raise ConfigValueError("condition", str(exc)) from None
         for key, groups in (("ignore_group", params.ignore_groups), ("reject_group", params.reject_groups)):
-            groups.update(g.strip().lower() for text in get_all(key) for g in text.split(",") if g.strip())
+            groups.update(g.strip().lower() for text in v[key] for g in text.split(",") if g.strip())
         if params.near_miss_range < params.collision_range:
             params.near_miss_range = params.collision_range
             params.warnings.append("near_miss_range raised to collision_range")
@@ -251,10 +246,22 @@ class CollisionMonitor:
             ("encounter_range", p.encounter_range)))
 
 
-COLLISION_KEYS = frozenset({
-    "encounter_range", "near_miss_range", "collision_range", "collision_flag", "near_miss_flag", "encounter_flag",
-    "condition", "ignore_group", "reject_group", "post_closest_range", "report_all_encounters", "pulse_render",
-    "pulse_range", "pulse_duration", "encounter_rings", "app_logging"})
+COLLISION_PARAMS = Params(
+    Param("condition", list, [], "count only while this holds (repeatable)"),
+    *(Param(f"{rank}_flag", list, [], f"`VAR = value` posted at each {rank.replace('_', ' ')} ($V1, $V2, $CPA; "
+                                      "repeatable)") for rank in RANKS),
+    Param("encounter_range", float, 20.0, "m", lo=0.0),
+    Param("near_miss_range", float, 6.0, "m", lo=0.0),
+    Param("collision_range", float, 3.0, "m", lo=0.0),
+    Param("ignore_group", list, [], "pairs of two vehicles of these groups are not judged"),
+    Param("reject_group", list, [], "reports of these groups are not read at all"),
+    Param("post_closest_range", bool, False, "UCD_CLOSEST_RANGE every round"),
+    Param("report_all_encounters", bool, False, "UCD_REPORT for plain encounters too"),
+    Param("pulse_render", bool, True, "VIEW_RANGE_PULSE at each near miss and collision"),
+    Param("pulse_range", float, 20.0, "m", lo=0.0),
+    Param("pulse_duration", float, 10.0, "s", lo=0.0),
+    Param("encounter_rings", str, "", "accepted, not drawn"),
+)
 
 
 class CollisionDetect(MachineApp):
@@ -269,6 +276,7 @@ class CollisionDetect(MachineApp):
     """
 
     default_name = "uFldCollisionDetect"
+    parameters = COLLISION_PARAMS
     inputs = ("NODE_REPORT",)
     example_config = """\
 ProcessConfig = uFldCollisionDetect
@@ -314,7 +322,6 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         params = read_params(self.config, CollisionParams.from_config)
-        warn_unhandled(self.config, COLLISION_KEYS)
         for warning in params.warnings:
             log.warning("%s: %s", self.name, warning)
         self.machine = CollisionMonitor(params, mission_grid(self.mission))

@@ -10,7 +10,7 @@ import logging
 from dataclasses import dataclass
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_bool, read_params, warn_unhandled
+from moosdb_py.config import Param, Params
 from oilspill_moos.node_record import NodeMessage, NodeRecordError
 
 log = logging.getLogger(__name__)
@@ -68,6 +68,8 @@ class MessageHandler(MOOSApp):
     """
 
     default_name = "uFldMessageHandler"
+    parameters = Params(Param("strict_addressing", bool, False,
+                              "true: reject messages not addressed to this vehicle by name"))
     example_config = """\
 ProcessConfig = uFldMessageHandler
 {
@@ -86,8 +88,7 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        strict = read_params(self.config, lambda cfg: config_bool(cfg, "strict_addressing", False))
-        warn_unhandled(self.config, {"strict_addressing"})
+        strict = self.read_settings()["strict_addressing"]
         community = (self.mission.community if self.mission is not None else "") or "unknown"
         self.inbox = MessageInbox(community, strict)
         self.new_mail = False

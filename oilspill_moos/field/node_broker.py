@@ -11,16 +11,24 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field, replace
 
-from moosdb_py.app import MOOSApp
-from moosdb_py.host_info import HostRecord, format_warp, iroutes_from_summary
+from moosdb_py.config import Param, Params
+from moosdb_py.host_info import HostRecord
 from moosdb_py.message import MOOSMsg
-from moosdb_py.mission import db_address
-from oilspill_moos.app_config import config_bool, parse_pairs, warn_unhandled
+from oilspill_moos.field.bridges import (
+    HOSTIP,
+    PING_VAR,
+    BrokerApp,
+    BrokerState,
+    Post,
+    bridge_switches,
+    pairs_at,
+    parse_bridge,
+    pshare_output_cmd,
+    strip_blanks,
+)
 
 log = logging.getLogger(__name__)
 
-PING_VAR = "NODE_BROKER_PING"
-ACK_VAR = "NODE_BROKER_ACK"
 PING_PERIOD = 20.0  # seconds between pings while a shore answers
 PING_PERIOD_UNANSWERED = 5.0  # ... and while none has answered for this long
 NODE_AUTO_BRIDGES = {
@@ -28,47 +36,6 @@ NODE_AUTO_BRIDGES = {
     "auto_bridge_realmcast": ("REALMCAST", "WATCHCAST", "REALMCAST_CHANNELS"),
     "auto_bridge_pshare_vars": ("NODE_PSHARE_VARS",),
 }
-
-Post = tuple[str, str | float]
-
-
-def strip_blanks(text: str) -> str:
-    """MOOS deletes every blank inside a config line before an app reads it; do the same."""
-    return "".join(text.split())
-
-
-def pairs_at(text: str, where: str) -> dict[str, str]:
-    """`a=1,b=2` -> {'a': '1', 'b': '2'}; an error names the place."""
-    try:
-        return parse_pairs(text)
-    except ValueError as exc:
-        raise ValueError(f"{where}: {exc}") from None
-
-
-def own_host_record(community: str, hostip: str, port_db: int, input_summary: str, time_warp: float) -> HostRecord:
-    """The record pHostInfo would post, built from the mission and pShare's PSHARE_INPUT_SUMMARY.
-
-    Used when no pHostInfo runs in the community; a PHI_HOST_INFO that arrives wins.
-    """
-    return HostRecord(
-        community=community,
-        hostip=hostip,
-        port_db=str(port_db),
-        pshare_iroutes=iroutes_from_summary(input_summary),
-        timewarp=format_warp(time_warp),
-    )
-
-
-def parse_bridge(text: str, where: str) -> tuple[str, str]:
-    """`src=VAR[,alias=VAR2]` -> (src, alias); the alias defaults to src."""
-    pairs = pairs_at(strip_blanks(text), where)
-    src = pairs.get("src", "")
-    if not src:
-        raise ValueError(f"{where}: bridge '{text}' has no src=")
-    unknown = set(pairs) - {"src", "alias"}
-    if unknown:
-        raise ValueError(f"{where}: bridge '{text}' has unknown field(s) {', '.join(sorted(unknown))}")
-    return src, pairs.get("alias") or src
 
 
 def parse_shore_route(text: str, where: str) -> str:
@@ -81,28 +48,6 @@ def parse_shore_route(text: str, where: str) -> str:
     return route
 
 
-def parse_output_summary(summary: str) -> set[tuple[str, str, str]]:
-    """PSHARE_OUTPUT_SUMMARY -> {(src, dest, host:port)}.
-
-    Format: `src->dest:host:port & dest2:host:port, src2->...` (a multicast route
-    carries a third `:multicast_N` part, kept in the route).
-    """
-    shares: set[tuple[str, str, str]] = set()
-    for entry in summary.split(","):
-        src, sep, routes = entry.strip().partition("->")
-        if not sep:
-            continue
-        for route in routes.split("&"):
-            dest, _, address = route.strip().partition(":")
-            if address:
-                shares.add((src, dest, address))
-    return shares
-
-
-def pshare_output_cmd(src: str, dest: str, route: str) -> str:
-    return f"cmd=output,src_name={src},dest_name={dest},route={route}"
-
-
 @dataclass
 class ShoreContact:
     """What a node knows about a shore that acknowledged it."""
@@ -113,36 +58,6 @@ class ShoreContact:
     timewarp: str = ""
     last_ack: float | None = None
     bridged_at: float | None = None
-
-
-@dataclass
-class BrokerState:
-    """What both brokers keep about their own community's host record."""
-
-    community: str
-    host_record: HostRecord | None = None
-    host_record_from_phi: bool = False
-    shared: set[tuple[str, str, str]] | None = None  # what pShare says it forwards; None until it says
-    warnings: list[str] = field(default_factory=list)
-
-    def on_output_summary(self, summary: str) -> None:
-        self.shared = parse_output_summary(summary)
-
-    def on_host_info(self, text: str, community: str) -> None:
-        """PHI_HOST_INFO from our own pHostInfo (one from elsewhere is not ours). It wins over the
-        record built from PSHARE_INPUT_SUMMARY once it carries pShare's routes and the time warp."""
-        if community and community != self.community:
-            return
-        record = HostRecord.parse(text)
-        if not (record.pshare_iroutes and record.timewarp):
-            return
-        self.host_record = replace(record, status="", time="", key="")
-        self.host_record_from_phi = True
-
-    def on_input_summary(self, summary: str, hostip: str, port_db: int, time_warp: float) -> None:
-        """PSHARE_INPUT_SUMMARY: our iroutes, unless a pHostInfo already told us."""
-        if not self.host_record_from_phi and summary.strip():
-            self.host_record = own_host_record(self.community, hostip, port_db, summary, time_warp)
 
 
 @dataclass
@@ -254,62 +169,6 @@ def node_bridges(bridge_lines: list[str], auto: dict[str, bool]) -> list[tuple[s
     return bridges
 
 
-# --- the MOOSApp shells -------------------------------------------------------------------------
-
-class BrokerApp(MOOSApp):
-    """What both broker apps share: mail dispatch with per-message errors, posting, warnings."""
-
-    state: BrokerState
-    handlers: dict[str, str] = {}  # variable -> name of the method that takes its mail
-    config_keys: frozenset[str] = frozenset()
-
-    def read_common(self) -> None:
-        warn_unhandled(self.config, self.config_keys)
-        community = self.mission.community if self.mission else "#1"
-        server_host, self.port_db, _ = db_address(self.mission)
-        self.hostip = (self.config.get("hostip") or server_host).strip()
-        self.community = community
-
-    def on_connect(self) -> None:
-        for var in self.handlers:
-            self.register(var)
-
-    def on_new_mail(self, mail: list[MOOSMsg]) -> None:
-        for msg in mail:
-            method = self.handlers.get(msg.key)
-            if method is None:
-                continue
-            try:
-                self.post(getattr(self, method)(msg) or [])
-            except ValueError as exc:
-                log.warning("%s: %s from %s dropped: %s", self.name, msg.key, msg.sender, exc)
-        self.report_warnings()
-
-    def iterate(self) -> None:
-        self.post(self.state.iterate(self.moos_time()))
-        self.report_warnings()
-
-    def post(self, posts: list[Post]) -> None:
-        for key, value in posts:
-            self.notify(key, value)
-
-    def report_warnings(self) -> None:
-        while self.state.warnings:
-            log.warning("%s: %s", self.name, self.state.warnings.pop(0))
-
-    def on_host_info(self, msg: MOOSMsg) -> None:
-        self.state.on_host_info(msg.string, msg.community)
-
-    def on_input_summary(self, msg: MOOSMsg) -> None:
-        self.state.on_input_summary(msg.string, self.hostip, self.port_db, self.time_warp)
-
-    def on_output_summary(self, msg: MOOSMsg) -> None:
-        self.state.on_output_summary(msg.string)
-
-    def auto_switches(self, names) -> dict[str, bool]:
-        return {name: config_bool(self.config, name, True) for name in names}
-
-
 class NodeBroker(BrokerApp):
     """uFldNodeBroker: pings the shoreside(s) through pShare until one acknowledges, then asks pShare
     to bridge the configured variables (NODE_REPORT_LOCAL -> NODE_REPORT, ...) to that shore.
@@ -357,7 +216,13 @@ PUBLICATIONS:
   NODE_BROKER_PING_<i>  <host record>,time=<utc>,key=<i>  every 20 s (5 s while unanswered)
   NODE_PSHARE_VARS      comma list of the bridged aliases
 """
-    config_keys = frozenset({"try_shore_host", "bridge", "hostip", *NODE_AUTO_BRIDGES})
+    parameters = Params(
+        Param("try_shore_host", list, [], "`pshare_route=host:port` where a shoreside pShare listens (repeatable)"),
+        Param("bridge", list, [], "`src=VAR[, alias=NAME]` bridged to every shore that acknowledges (repeatable); "
+                                  "alias defaults to src"),
+        *bridge_switches(NODE_AUTO_BRIDGES),
+        HOSTIP,
+    )
     handlers = {
         "PHI_HOST_INFO": "on_host_info",
         "PSHARE_INPUT_SUMMARY": "on_input_summary",
@@ -367,10 +232,10 @@ PUBLICATIONS:
     }
 
     def on_startup(self) -> None:
-        self.read_common()
-        bridges = node_bridges(self.config.get_all("bridge"), self.auto_switches(NODE_AUTO_BRIDGES))
+        settings = self.read_common()
+        bridges = node_bridges(settings["bridge"], {name: settings[name] for name in NODE_AUTO_BRIDGES})
         self.state = NodeBrokerState(self.community, bridges=bridges)
-        for i, line in enumerate(self.config.get_all("try_shore_host")):
+        for i, line in enumerate(settings["try_shore_host"]):
             self.state.add_shore(parse_shore_route(line, f"try_shore_host #{i + 1}"))
         if not self.state.shores:
             log.warning("%s: no try_shore_host; waiting for TRY_SHORE_HOST mail", self.name)

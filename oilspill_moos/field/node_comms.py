@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from moosdb_py.formats import parse_pairs
-from oilspill_moos.app_config import (
-    ConfigValueError, config_bool, config_float, config_str, read_params, warn_unhandled)
+from moosdb_py.config import ConfigValueError, Param, Params, config_float, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import NodeMessage, NodeRecord, NodeRecordError
@@ -45,6 +44,26 @@ def parse_vname_factor(text: str, key: str, lo: float, hi: float) -> tuple[str, 
     return vname.upper(), min(max(value, lo), hi)
 
 
+NODE_COMMS_PARAMS = Params(
+    Param("comms_range", str, "100", "m (nolimit or < 0: no limit; 0: nothing passes)"),
+    Param("critical_range", float, 30.0, "m: reports always pass within this range", lo=0.0),
+    Param("stale_time", float, 5.0, "s: receivers silent longer hear nothing (< 0: never stale)"),
+    Param("max_msg_length", int, 1000, "characters of a message's string_val (0: no limit)", lo=0),
+    Param("min_msg_interval", float, 30.0, "s between messages from one sender", lo=0.0),
+    Param("min_rpt_interval", float, -1.0, "s between reports from one vehicle to another (< 0: every one)"),
+    Param("groups", bool, False, "reports pass only within a group (GROUP= of the reports)"),
+    Param("msg_groups", bool, False, "messages likewise"),
+    Param("ignore_group", str, "", "reports of this group are not relayed"),
+    Param("stealth", list, [], "`vname=alpha, stealth=0.8`: alpha is heard only within 0.8 x comms_range (>= 0.1)"),
+    Param("earange", list, [], "`vname=alpha, earange=4.5`: alpha hears from 4.5 x comms_range (<= 10)"),
+    Param("drop_percentage", float, 0.0, "% of otherwise passing reports and messages dropped at random", 0.0, 100.0),
+    Param("drop_seed", str, "", "whole-number seed for the drops (project addition; default: unseeded)"),
+    Param("shared_node_reports", str, "false", "true (or real s): also post NODE_REPORT_UNC for a shoreside viewer"),
+    *(Param(key, str, "", "drawing switch of the C++ app: accepted, nothing to draw here")
+      for key in ("view_node_rpt_pulses", "pulse_duration", "msg_color", "msg_repeat_color")),
+)
+
+
 @dataclass
 class NodeCommsParams:
     """The uFldNodeComms block, with the documented defaults (ranges in metres, times in seconds)."""
@@ -66,10 +85,8 @@ class NodeCommsParams:
 
     @classmethod
     def from_config(cls, cfg) -> "NodeCommsParams":
-        get_all = cfg.get_all if hasattr(cfg, "get_all") else (lambda k: [cfg[k]] if k in cfg else [])
-        comms = config_str(cfg, "comms_range", "100")
-        shared = config_str(cfg, "shared_node_reports", "false").lower()
-        seed = config_str(cfg, "drop_seed", "")
+        v = NODE_COMMS_PARAMS.read(cfg)
+        comms, shared, seed = v["comms_range"], v["shared_node_reports"].lower(), v["drop_seed"]
         if shared not in ("true", "false"):
             shared_value = config_float(cfg, "shared_node_reports", 0.1, lo=0.0)
         else:
@@ -78,19 +95,12 @@ class NodeCommsParams:
             raise ConfigValueError("drop_seed", f"expected a whole number >= 0, got {seed!r}")
         return cls(
             comms_range=-1.0 if comms.lower() == "nolimit" else config_float(cfg, "comms_range", 100.0),
-            critical_range=config_float(cfg, "critical_range", 30.0, lo=0.0),
-            stale_time=config_float(cfg, "stale_time", 5.0),
-            min_msg_interval=config_float(cfg, "min_msg_interval", 30.0, lo=0.0),
-            min_rpt_interval=config_float(cfg, "min_rpt_interval", -1.0, lo=0.0)
-            if config_str(cfg, "min_rpt_interval", "") else -1.0,
-            max_msg_length=int(config_float(cfg, "max_msg_length", 1000, lo=0)),
-            groups=config_bool(cfg, "groups", False),
-            msg_groups=config_bool(cfg, "msg_groups", False),
-            drop_percentage=config_float(cfg, "drop_percentage", 0.0, lo=0.0, hi=100.0),
-            ignore_group=config_str(cfg, "ignore_group", "").upper(),
+            critical_range=v["critical_range"], stale_time=v["stale_time"], min_msg_interval=v["min_msg_interval"],
+            min_rpt_interval=v["min_rpt_interval"], max_msg_length=int(v["max_msg_length"]), groups=v["groups"],
+            msg_groups=v["msg_groups"], drop_percentage=v["drop_percentage"], ignore_group=v["ignore_group"].upper(),
             shared_node_reports=shared_value,
-            stealth=dict(parse_vname_factor(t, "stealth", MIN_STEALTH, 1.0) for t in get_all("stealth")),
-            earange=dict(parse_vname_factor(t, "earange", 1.0, MAX_EARANGE) for t in get_all("earange")),
+            stealth=dict(parse_vname_factor(t, "stealth", MIN_STEALTH, 1.0) for t in v["stealth"]),
+            earange=dict(parse_vname_factor(t, "earange", 1.0, MAX_EARANGE) for t in v["earange"]),
             drop_seed=int(seed) if seed else None,
         )
 
@@ -281,13 +291,6 @@ class NodeCommsRelay:
         return posts
 
 
-NODE_COMMS_KEYS = frozenset({
-    "comms_range", "critical_range", "stale_time", "min_msg_interval", "min_rpt_interval", "max_msg_length",
-    "groups", "msg_groups", "drop_percentage", "ignore_group", "shared_node_reports", "stealth", "earange",
-    "drop_seed"})
-# Drawing and logging switches of the C++ app: accepted, nothing to do here.
-NOT_IMPLEMENTED_KEYS = frozenset({"verbose", "debug", "view_node_rpt_pulses", "pulse_duration", "msg_color",
-                                  "msg_repeat_color", "app_logging"})
 INPUTS = ("NODE_REPORT", "NODE_REPORT_LOCAL", "NODE_MESSAGE", "UNC_STEALTH", "UNC_EARANGE", "UNC_COMMS_RANGE",
           "UNC_DROP_PCT")
 
@@ -304,6 +307,7 @@ class NodeComms(MachineApp):
     """
 
     default_name = "uFldNodeComms"
+    parameters = NODE_COMMS_PARAMS
     inputs = INPUTS
     example_config = """\
 ProcessConfig = uFldNodeComms
@@ -349,7 +353,6 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         params = read_params(self.config, NodeCommsParams.from_config)
-        warn_unhandled(self.config, NODE_COMMS_KEYS | NOT_IMPLEMENTED_KEYS)
         self.machine = NodeCommsRelay(params, grid=mission_grid(self.mission), time_warp=self.time_warp)
 
     def status_fields(self) -> dict:

@@ -10,16 +10,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from moosdb_py.config import Param, Params
+from moosdb_py.host_info import HostRecord
 from moosdb_py.message import MOOSMsg
-from oilspill_moos.field.node_broker import (
+from oilspill_moos.field.bridges import (
     ACK_VAR,
+    HOSTIP,
     BrokerApp,
     BrokerState,
-    HostRecord,
     Post,
-    parse_bridge,
-    parse_output_summary,
+    bridge_switches,
     pairs_at,
+    parse_bridge,
     pshare_output_cmd,
     strip_blanks,
 )
@@ -274,8 +276,15 @@ PUBLICATIONS:
   UFSB_QBRIDGE_VARS        comma list of the qbridge variables
   UFSB_BRIDGE_VARS         comma list of every bridge source
 """
-    config_keys = frozenset({"qbridge", "bridge", "keyword", "try_vnode", "hostip",
-                             *SHORE_AUTO_QBRIDGES, *SHORE_AUTO_BRIDGES})
+    parameters = Params(
+        Param("qbridge", list, [], "`X[, Y...]`: short for bridge = src=X_ALL,alias=X and bridge = src=X_$V,alias=X"),
+        Param("bridge", list, [], "`src=VAR, alias=NAME`; src may hold $V (vehicle name in upper case), $v (as "
+                                  "given), $N (vehicle index, from 1)"),
+        *bridge_switches({**SHORE_AUTO_QBRIDGES, **SHORE_AUTO_BRIDGES}),
+        Param("keyword", str, "", "pings with another keyword get status=keyword_mismatch"),
+        Param("try_vnode", list, [], "`route=host:port`: offer this shore to a vehicle by address (repeatable)"),
+        HOSTIP,
+    )
     handlers = {
         "NODE_BROKER_PING": "on_ping",
         "PHI_HOST_INFO": "on_host_info",
@@ -284,11 +293,11 @@ PUBLICATIONS:
     }
 
     def on_startup(self) -> None:
-        self.read_common()
-        switches = self.auto_switches([*SHORE_AUTO_QBRIDGES, *SHORE_AUTO_BRIDGES])
-        bridges, qvars = shore_bridges(self.config.get_all("bridge"), self.config.get_all("qbridge"), switches)
-        vnodes = [parse_vnode_route(line, f"try_vnode #{i + 1}") for i, line in enumerate(self.config.get_all("try_vnode"))]
-        keyword = strip_blanks(self.config.get("keyword") or "")
+        settings = self.read_common()
+        switches = {name: settings[name] for name in [*SHORE_AUTO_QBRIDGES, *SHORE_AUTO_BRIDGES]}
+        bridges, qvars = shore_bridges(settings["bridge"], settings["qbridge"], switches)
+        vnodes = [parse_vnode_route(line, f"try_vnode #{i + 1}") for i, line in enumerate(settings["try_vnode"])]
+        keyword = strip_blanks(settings["keyword"])
         self.state = ShoreBrokerState(self.community, bridges=bridges, qbridge_vars=qvars, keyword=keyword,
                                       vnode_routes=vnodes)
 

@@ -20,8 +20,7 @@ import shapely
 from behaviors.flags import FlagError, FlagSpec, expand_macros, parse_flag
 from behaviors.geometry import GeometryError, parse_polygon
 from moosdb_py.formats import FormatError, format_number, is_number, parse_bool
-from oilspill_moos.app_config import (
-    ConfigValueError, config_bool, config_float, config_str, read_params, warn_unhandled)
+from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from oilspill_moos.node_record import (
@@ -203,35 +202,29 @@ class ContactMgrParams:
     @classmethod
     def from_config(cls, cfg, basic: bool = False) -> "ContactMgrParams":
         """The block; `basic` reads it as pBasicContactMgr does (default alert ranges, contacts kept an hour)."""
-        get_all = cfg.get_all if hasattr(cfg, "get_all") else (lambda k: [cfg[k]] if k in cfg else [])
-        decay_text = config_str(cfg, "decay", "15,30")
+        v = CONTACT_MGR_PARAMS.read(cfg)
+        decay_text = v["decay"]
         start, _, end = decay_text.partition(",")
         start_v, end_v = (float(t) if is_number(t) else None for t in (start, end))
         if start_v is None or end_v is None or not 0 <= start_v <= end_v:
             raise ConfigValueError("decay", f"expected 'start,end' seconds with 0 <= start <= end, got {decay_text!r}")
-        coords = config_str(cfg, "contact_local_coords", "verbatim").lower()
+        coords = v["contact_local_coords"].lower()
         if coords not in ("verbatim", "lazy_lat_lon", "force_lat_lon"):
             raise ConfigValueError("contact_local_coords", f"{coords!r} is not verbatim, lazy_lat_lon or force_lat_lon")
+        same = ("max_retired_history", "range_report_timeout", "range_report_maxsize", "post_closest_range",
+                "post_closest_relbng", "post_all_ranges", "max_contacts", "alert_verbose", "hold_alerts_for_helm")
+        max_age = v["contact_max_age"]
         return cls(
-            alerts=get_all("alert"),
-            filter_lines=[(key, v) for key in (*FILTER_KEYS, "strict_ignore") for v in get_all(key)],
-            contact_max_age=config_float(cfg, "contact_max_age", 3600.0 if basic else 60.0, lo=0.0),
-            max_retired_history=int(config_float(cfg, "max_retired_history", 5, lo=1, hi=50)),
+            alerts=v["alert"],
+            filter_lines=[(key, line) for key in (*FILTER_KEYS, "strict_ignore") for line in v[key]],
+            contact_max_age=(3600.0 if basic else 60.0) if max_age is None else max_age,
             decay=(start_v, end_v),
-            recap_interval=_off_or_float(cfg, "recap_interval" if cfg.get("recap_interval") is not None
-                                         else "contacts_recap_interval", 1.0),
-            range_report_timeout=config_float(cfg, "range_report_timeout", 10.0, lo=0.0),
-            range_report_maxsize=int(config_float(cfg, "range_report_maxsize", 20, lo=0)),
-            post_closest_range=config_bool(cfg, "post_closest_range", False),
-            post_closest_relbng=config_bool(cfg, "post_closest_relbng", False),
-            post_all_ranges=config_bool(cfg, "post_all_ranges", False),
-            reject_range=_off_or_float(cfg, "reject_range", 2000.0),
-            max_contacts=int(config_float(cfg, "max_contacts", 500, lo=1)),
-            alert_verbose=config_bool(cfg, "alert_verbose", False),
-            hold_alerts_for_helm=config_bool(cfg, "hold_alerts_for_helm", False),
+            recap_interval=_off_or_float(v, "recap_interval" if v["recap_interval"] else "contacts_recap_interval", 1.0),
+            reject_range=_off_or_float(v, "reject_range", 2000.0),
             contact_local_coords=coords,
-            default_ranges=(_first_float(cfg, BASIC_RANGE_KEYS, 1000.0), _first_float(cfg, BASIC_CPA_KEYS, 1000.0))
+            default_ranges=(_first_float(v, BASIC_RANGE_KEYS, 1000.0), _first_float(v, BASIC_CPA_KEYS, 1000.0))
             if basic else None,
+            **{name: v[name] for name in same},
         )
 
 
@@ -239,15 +232,17 @@ BASIC_RANGE_KEYS = ("default_alert_range", "alert_range")
 BASIC_CPA_KEYS = ("default_cpa_range", "default_alert_range_cpa", "alert_cpa_range")
 
 
-def _first_float(cfg, keys: tuple[str, ...], default: float) -> float:
+def _first_float(values: dict, keys: tuple[str, ...], default: float) -> float:
     """The first of several spellings the block gives (all positive numbers), else `default`."""
-    key = next((k for k in keys if cfg.get(k) is not None), None)
-    return default if key is None else config_float(cfg, key, default, lo=0.0)
+    return next((values[k] for k in keys if values[k] is not None), default)
 
 
-def _off_or_float(cfg, key: str, default: float) -> float:
-    text = config_str(cfg, key, "")
-    return -1.0 if text.lower() == "off" else config_float(cfg, key, default, lo=0.0)
+def _off_or_float(values: dict, key: str, default: float) -> float:
+    """`off` -> -1; a number >= 0; blank -> `default`."""
+    text = values[key]
+    if text.lower() == "off":
+        return -1.0
+    return Param(key, float, default, "", lo=0.0).read(values)
 
 
 def alert_macros(record: NodeRecord) -> dict[str, str]:
@@ -488,11 +483,6 @@ class ContactManager:
         return posts + self.range_reports(now) + self.summaries(now)
 
 
-CONTACT_MGR_KEYS = frozenset({
-    "alert", *FILTER_KEYS, "strict_ignore", "contact_max_age", "max_retired_history", "decay", "recap_interval",
-    "contacts_recap_interval", "range_report_timeout", "range_report_maxsize", "post_closest_range",
-    "post_closest_relbng", "post_all_ranges", "reject_range", "max_contacts", "alert_verbose",
-    "hold_alerts_for_helm", "contact_local_coords", "ownship_group", "ownship_type"})
 # Accepted for C++ missions, but only drawn or logged there: one summary line, not a warning each.
 NOT_IMPLEMENTED_KEYS = frozenset({
     "display_radii", "display_radii_id", "alert_range_color", "cpa_range_color", "default_alert_range_color",
@@ -500,7 +490,36 @@ NOT_IMPLEMENTED_KEYS = frozenset({
     "enable_flag", "early_warning_time", "early_warning_rng", "early_warning_radii", "ewarn_radii_color",
     "early_warning_ref_spd", "early_warning_flag", "cease_warning_flag", "retire_flag", "alert_range",
     "alert_cpa_range", "alert_cpa_time", "default_alert_range_cpa_time"})
-BASIC_KEYS = frozenset({*BASIC_RANGE_KEYS, *BASIC_CPA_KEYS})
+CONTACT_MGR_PARAMS = Params(
+    Param("alert", list, [], "`id=.., var=.., val=.., alert_range=.., cpa_range=.., on_flag=.., off_flag=..` "
+                             "(repeatable; lines of one id add up)"),
+    *(Param(key, list, [], f"contact filter: {key.replace('_', ' ')} (comma lists, repeatable)") for key in FILTER_KEYS),
+    Param("strict_ignore", list, [], "true: an ignore list also drops contacts that do not say"),
+    Param("contact_max_age", float, None, "s since the last report before a contact is retired (default 60; "
+                                          "3600 for pBasicContactMgr)", lo=0.0),
+    Param("max_retired_history", int, 5, "names kept in CONTACTS_RETIRED", 1, 50),
+    Param("reject_range", str, "", "m; contacts farther are retired (off: never; default 2000)"),
+    Param("max_contacts", int, 500, "contacts kept at most", lo=1),
+    Param("decay", str, "15,30", "s: dead reckoning at full speed, then slowing to a stop"),
+    Param("recap_interval", str, "", "s between CONTACTS_RECAP postings (off: none; default 1)"),
+    Param("contacts_recap_interval", str, "", "older name of recap_interval"),
+    Param("range_report_timeout", float, 10.0, "s a BCM_REPORT_REQUEST lasts without a repeat", lo=0.0),
+    Param("range_report_maxsize", int, 20, "contacts in a range report at most", lo=0),
+    Param("contact_local_coords", str, "verbatim", "verbatim, lazy_lat_lon or force_lat_lon (x/y from LAT/LON)"),
+    Param("post_closest_range", bool, False, "CONTACT_CLOSEST_RANGE"),
+    Param("post_closest_relbng", bool, False, "CONTACT_CLOSEST_RELBNG"),
+    Param("post_all_ranges", bool, False, "CONTACT_RANGES"),
+    Param("alert_verbose", bool, False, "ALERT_VERBOSE on every alert change"),
+    Param("hold_alerts_for_helm", bool, False, "no alerts until the helm has been in DRIVE"),
+    Param("ownship_group", str, "", "accepted"),
+    Param("ownship_type", str, "", "accepted"),
+    *(Param(key, float, None, "pBasicContactMgr: m, for alerts that give no range", lo=0.0)
+      for key in BASIC_RANGE_KEYS),
+    *(Param(key, float, None, "pBasicContactMgr: m, CPA range for alerts that give none", lo=0.0)
+      for key in BASIC_CPA_KEYS),
+    *(Param(key, str, "", "accepted for C++ missions, drawn or logged there: not acted on here")
+      for key in sorted(NOT_IMPLEMENTED_KEYS - set(BASIC_RANGE_KEYS + BASIC_CPA_KEYS))),
+)
 INPUTS = ("NODE_REPORT", "BCM_ALERT_REQUEST", "BCM_REPORT_REQUEST", "BCM_DISPLAY_RADII", "NAV_X", "NAV_Y",
           "NAV_SPEED", "NAV_HEADING", "IVPHELM_STATE")
 
@@ -518,6 +537,7 @@ class ContactMgr(MachineApp):
     """
 
     default_name = "pContactMgrV20"
+    parameters = CONTACT_MGR_PARAMS
     inputs = INPUTS
     basic = False   # read the block as pBasicContactMgr does
     example_config = """\
@@ -582,9 +602,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         params = read_params(self.config, lambda cfg: ContactMgrParams.from_config(cfg, self.basic))
-        handled = CONTACT_MGR_KEYS | (BASIC_KEYS if self.basic else frozenset())
-        not_acted_on = NOT_IMPLEMENTED_KEYS - handled
-        warn_unhandled(self.config, handled | not_acted_on)
+        not_acted_on = NOT_IMPLEMENTED_KEYS - (set(BASIC_RANGE_KEYS + BASIC_CPA_KEYS) if self.basic else set())
         ignored = sorted({e.key.lower() for e in self.config.entries} & not_acted_on)
         if ignored:
             log.warning("%s: parameters accepted but not acted on (display/logging only): %s", self.name, ", ".join(ignored))

@@ -11,7 +11,8 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigLike, config_bool, config_float, read_params, warn_unhandled
+from moosdb_py.config import ConfigLike, Param, Params, read_params
+from moosdb_py.formats import FormatError, parse_bool
 
 log = logging.getLogger("oilspill_moos.marine.marine_pid")
 
@@ -33,16 +34,38 @@ class PIDGains:
     integral_limit: float = 0.0
 
     @classmethod
-    def from_config(cls, cfg: ConfigLike, prefix: str) -> "PIDGains":
-        limit_key = f"{prefix}_integral_limit"
-        if cfg.get(limit_key, None) is None:
-            limit_key = f"{prefix}_ki_limit"  # the older alias
-        return cls(
-            kp=config_float(cfg, f"{prefix}_kp", 0.0),
-            kd=config_float(cfg, f"{prefix}_kd", 0.0),
-            ki=config_float(cfg, f"{prefix}_ki", 0.0),
-            integral_limit=config_float(cfg, limit_key, 0.0, lo=0.0),
-        )
+    def from_values(cls, v: dict, prefix: str) -> "PIDGains":
+        limit = v[f"{prefix}_integral_limit"]
+        return cls(kp=v[f"{prefix}_kp"], kd=v[f"{prefix}_kd"], ki=v[f"{prefix}_ki"],
+                   integral_limit=v[f"{prefix}_ki_limit"] if limit is None else limit)
+
+
+def _gain_params(loop: str, what: str) -> tuple[Param, ...]:
+    return (Param(f"{loop}_kp", float, 0.0, f"{what}: proportional gain"),
+            Param(f"{loop}_kd", float, 0.0, f"{what}: derivative gain"),
+            Param(f"{loop}_ki", float, 0.0, f"{what}: integral gain"),
+            Param(f"{loop}_integral_limit", float, None, f"{what}: integral clip (default 0)", lo=0.0),
+            Param(f"{loop}_ki_limit", float, 0.0, f"{what}: older name of {loop}_integral_limit", lo=0.0))
+
+
+PID_PARAMS = Params(
+    Param("depth_control", bool, True, "false for surface craft, else it waits for depth inputs"),
+    Param("speed_factor", float, 0.0, "non-zero: thrust = DESIRED_SPEED * speed_factor, speed PID bypassed"),
+    *_gain_params("yaw_pid", "heading loop (missing gains are 0: it never steers)"),
+    *_gain_params("speed_pid", "speed loop (incremental: thrust += PID)"),
+    *_gain_params("z_to_pitch_pid", "depth loop: depth error -> desired pitch"),
+    *_gain_params("pitch_pid", "pitch error -> elevator"),
+    Param("maxrudder", float, 100.0, "rudder clip", lo=0.0),
+    Param("maxthrust", float, 100.0, "thrust clip", lo=0.0),
+    Param("maxpitch", float, 15.0, "desired pitch clip", lo=0.0),
+    Param("maxelevator", float, 13.0, "elevator clip", lo=0.0),
+    Param("tardy_helm_threshold", float, 2.0, "s: older desired values make the PID stale", lo=0.0),
+    Param("tardy_nav_threshold", float, 2.0, "s: older nav values make the PID stale", lo=0.0),
+    Param("simulation", bool, False, "skip the staleness check (then it never gains control, as in MOOS)"),
+    Param("ignore_nav_yaw", bool, False, "do not take the heading from NAV_YAW"),
+    Param("pid_verbose", str, "", "accepted for compatibility"),
+    Param("active_start", str, "", "accepted, no effect: MOOS_MANUAL_OVERRIDE=false starts it"),
+)
 
 
 class ScalarPID:
@@ -102,22 +125,13 @@ class PIDParams:
 
     @classmethod
     def from_config(cls, cfg: ConfigLike) -> "PIDParams":
-        return cls(
-            yaw=PIDGains.from_config(cfg, "yaw_pid"),
-            speed=PIDGains.from_config(cfg, "speed_pid"),
-            z_to_pitch=PIDGains.from_config(cfg, "z_to_pitch_pid"),
-            pitch=PIDGains.from_config(cfg, "pitch_pid"),
-            max_rudder=config_float(cfg, "maxrudder", 100.0, lo=0.0),
-            max_thrust=config_float(cfg, "maxthrust", 100.0, lo=0.0),
-            max_pitch=config_float(cfg, "maxpitch", 15.0, lo=0.0),
-            max_elevator=config_float(cfg, "maxelevator", 13.0, lo=0.0),
-            speed_factor=config_float(cfg, "speed_factor", 0.0),
-            depth_control=config_bool(cfg, "depth_control", True),
-            tardy_helm_threshold=config_float(cfg, "tardy_helm_threshold", 2.0, lo=0.0),
-            tardy_nav_threshold=config_float(cfg, "tardy_nav_threshold", 2.0, lo=0.0),
-            simulation=config_bool(cfg, "simulation", False),
-            ignore_nav_yaw=config_bool(cfg, "ignore_nav_yaw", False),
-        )
+        v = PID_PARAMS.read(cfg)
+        same = ("speed_factor", "depth_control", "tardy_helm_threshold", "tardy_nav_threshold", "simulation",
+                "ignore_nav_yaw")
+        return cls(yaw=PIDGains.from_values(v, "yaw_pid"), speed=PIDGains.from_values(v, "speed_pid"),
+                   z_to_pitch=PIDGains.from_values(v, "z_to_pitch_pid"), pitch=PIDGains.from_values(v, "pitch_pid"),
+                   max_rudder=v["maxrudder"], max_thrust=v["maxthrust"], max_pitch=v["maxpitch"],
+                   max_elevator=v["maxelevator"], **{name: v[name] for name in same})
 
 
 class PIDEngine:
@@ -178,12 +192,6 @@ STALENESS_CHECKS = (
     ("NAV_SPEED", "NavSpd", "tardy_nav_threshold"),
     ("NAV_DEPTH", "NavDepth", "tardy_nav_threshold"),
 )
-PID_CONFIG_KEYS = frozenset(
-    {f"{loop}_pid_{gain}" for loop in ("yaw", "speed", "z_to_pitch", "pitch")
-     for gain in ("kp", "kd", "ki", "integral_limit", "ki_limit")}
-    | {"maxrudder", "maxthrust", "maxpitch", "maxelevator", "speed_factor", "depth_control",
-       "tardy_helm_threshold", "tardy_nav_threshold", "simulation", "ignore_nav_yaw", "pid_verbose",
-       "active_start"})
 NUMERIC_INPUTS = ("DESIRED_HEADING", "DESIRED_SPEED", "DESIRED_DEPTH", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH",
                   "NAV_PITCH", "NAV_YAW")
 DEPTH_INPUTS = ("DESIRED_DEPTH", "NAV_DEPTH")
@@ -203,6 +211,7 @@ class MarinePID(MOOSApp):
     """
 
     default_name = "pMarinePID"
+    parameters = PID_PARAMS
     example_config = """\
 ProcessConfig = pMarinePIDV22
 {
@@ -256,7 +265,6 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         self.params = read_params(self.config, PIDParams.from_config)
-        warn_unhandled(self.config, PID_CONFIG_KEYS)
         self.engine = PIDEngine(self.params)
         self.overridden = True
         self.values: dict[str, float] = {}
@@ -292,14 +300,18 @@ PUBLICATIONS:
                 self.times[key] = msg.time if msg.time > 0 else now
 
     def _set_override(self, word: str) -> None:
-        if word == "false":
+        try:
+            overridden = parse_bool(word)
+        except FormatError:
+            return   # neither true nor false: no change, as pMarinePID
+        if not overridden:
             if self.overridden:
                 self.values.clear()
                 self.times.clear()
                 self.engine.reset()
             self.overridden = False
             self.notify("PID_HAS_CONTROL", "true")
-        elif word == "true" and not self.overridden:
+        elif not self.overridden:
             self.overridden = True
             self.notify("PID_HAS_CONTROL", "false")
             self._post(0.0, 0.0, 0.0)

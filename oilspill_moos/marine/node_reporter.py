@@ -12,17 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import (
-    ConfigLike,
-    ConfigValueError,
-    config_bool,
-    config_float,
-    config_str,
-    format_number,
-    parse_float,
-    read_params,
-    warn_unhandled,
-)
+from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_float, read_params
+from moosdb_py.formats import FormatError, format_number, parse_bool
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
@@ -78,33 +69,21 @@ class ReporterParams:
     paused: bool = False
 
     @classmethod
-    def from_config(cls, cfg: ConfigLike, plat_inputs: list[str] = ()) -> "ReporterParams":
-        policy = config_str(cfg, "crossfill_policy", "literal").lower()
+    def from_config(cls, cfg: ConfigLike) -> "ReporterParams":
+        v = REPORTER_PARAMS.read(cfg)
+        policy = v["crossfill_policy"].lower()
         if policy not in CROSSFILL_POLICIES:
             raise ConfigValueError("crossfill_policy", f"{policy!r} is not one of {', '.join(CROSSFILL_POLICIES)}")
-        ptype = cfg.get("platform_type", None) or cfg.get("vessel_type", None) or "unknown"
-        group = cfg.get("platform_group", None) or cfg.get("group", None) or ""
-        output = config_str(cfg, "node_report_output", "NODE_REPORT_LOCAL")
+        output = v["node_report_output"]
         if not output.replace("_", "").isalnum():
             raise ConfigValueError("node_report_output", f"{output!r} is not a MOOS variable name")
-        return cls(
-            platform_type=str(ptype).strip(),
-            platform_color=config_str(cfg, "platform_color", ""),
-            platform_length=config_float(cfg, "platform_length", 0.0, lo=0.0),
-            platform_beam=config_float(cfg, "platform_beam", 0.0, lo=0.0),
-            platform_group=str(group).strip(),
-            platform_vsource=config_str(cfg, "platform_vsource", ""),
-            terse_reports=config_bool(cfg, "terse_reports", False),
-            blackout_interval=config_float(cfg, "blackout_interval", 0.0, lo=0.0),
-            blackout_variance=config_float(cfg, "blackout_variance", 0.0, lo=0.0),
-            node_report_output=output,
-            plat_report_output=config_str(cfg, "plat_report_output", "PLATFORM_REPORT_LOCAL"),
-            plat_report_inputs=[PlatReportInput.parse(t) for t in plat_inputs],
-            nohelm_threshold=config_float(cfg, "nohelm_threshold", 5.0, lo=0.0),
-            crossfill_policy=policy,
-            coord_policy_global=config_bool(cfg, "coord_policy_global", False),
-            paused=config_bool(cfg, "paused", False),
-        )
+        same = ("platform_color", "platform_length", "platform_beam", "platform_vsource", "terse_reports",
+                "blackout_interval", "blackout_variance", "plat_report_output", "nohelm_threshold",
+                "coord_policy_global", "paused")
+        return cls(platform_type=v["platform_type"] or v["vessel_type"] or "unknown",
+                   platform_group=v["platform_group"] or v["group"], node_report_output=output,
+                   plat_report_inputs=[PlatReportInput.parse(t) for t in v["plat_report_input"]],
+                   crossfill_policy=policy, **{name: v[name] for name in same})
 
 
 def summary_modes(summary: str) -> str | None:
@@ -193,13 +172,21 @@ class NodeReportBuilder:
         elif key == "LOAD_WARNING":
             self.load_warning = word
         elif key == "THRUST_MODE_REVERSE":
-            self.thrust_mode_reverse = word.lower() == "true"
+            self.thrust_mode_reverse = self._flag(word, self.thrust_mode_reverse)
         elif key == "NODE_GROUP_UPDATE":
             self.group = word
         elif key in ("NODE_COLOR_CHANGE", "PLATFORM_COLOR"):
             self.color = word
         elif key == "PNR_PAUSE":
-            self.paused = word.lower() == "true"
+            self.paused = self._flag(word, self.paused)
+
+    @staticmethod
+    def _flag(word: str, current: bool) -> bool:
+        """A MOOS boolean in mail; anything else leaves the setting as it was."""
+        try:
+            return parse_bool(word)
+        except FormatError:
+            return current
 
     # ---- output --------------------------------------------------------------------------
     def mode(self, now: float) -> str:
@@ -243,11 +230,11 @@ class NodeReportBuilder:
         p = self.params
         fields: list[tuple[str, str]] = [("NAME", self.name)]
         if not p.coord_policy_global and "x" in pos and "y" in pos:
-            fields += [("X", format_number(pos["x"])), ("Y", format_number(pos["y"]))]
+            fields += [("X", format_number(pos["x"], 2)), ("Y", format_number(pos["y"], 2))]
         hdg = self.nav.get("hdg", 0.0)
-        fields += [("SPD", format_number(self.nav.get("spd", 0.0))), ("HDG", format_number(hdg))]
+        fields += [("SPD", format_number(self.nav.get("spd", 0.0), 2)), ("HDG", format_number(hdg, 2))]
         if not p.terse_reports:
-            fields.append(("DEP", format_number(self.nav.get("dep", 0.0))))
+            fields.append(("DEP", format_number(self.nav.get("dep", 0.0), 2)))
         if "lat" in pos and "lon" in pos and (not p.terse_reports or p.coord_policy_global):
             fields += [("LAT", format_number(pos["lat"], 8)), ("LON", format_number(pos["lon"], 8))]
         fields.append(("TYPE", p.platform_type))
@@ -267,11 +254,11 @@ class NodeReportBuilder:
             fields.append(("YAW", format_number(yaw_from_heading(hdg), 7)))
         fields.append(("TIME", format_number(now, 2)))
         if self.transparency is not None:
-            fields.append(("TRANSPARENCY", format_number(self.transparency)))
+            fields.append(("TRANSPARENCY", format_number(self.transparency, 2)))
         if p.platform_length:
-            fields.append(("LENGTH", format_number(p.platform_length)))
+            fields.append(("LENGTH", format_number(p.platform_length, 2)))
         if p.platform_beam:
-            fields.append(("BEAM", format_number(p.platform_beam)))
+            fields.append(("BEAM", format_number(p.platform_beam, 2)))
         self.index += 1
         if p.blackout_interval > 0.0:
             jitter = self.rng.uniform(-p.blackout_variance, p.blackout_variance) if p.blackout_variance else 0.0
@@ -294,11 +281,26 @@ class NodeReportBuilder:
         return ",".join(parts)
 
 
-REPORTER_CONFIG_KEYS = frozenset({
-    "platform_type", "vessel_type", "platform_color", "platform_length", "platform_beam", "platform_group",
-    "group", "platform_vsource", "terse_reports", "blackout_interval", "blackout_variance", "node_report_output",
-    "plat_report_input", "plat_report_output", "nohelm_threshold", "crossfill_policy", "coord_policy_global",
-    "paused"})
+REPORTER_PARAMS = Params(
+    Param("platform_type", str, "", "kayak, uuv, ship, ... (default unknown)"),
+    Param("vessel_type", str, "", "older name of platform_type"),
+    Param("platform_color", str, "", "e.g. yellow"),
+    Param("platform_length", float, 0.0, "metres (LENGTH= when > 0)", lo=0.0),
+    Param("platform_beam", float, 0.0, "metres (BEAM= when > 0)", lo=0.0),
+    Param("platform_group", str, "", "GROUP="),
+    Param("group", str, "", "older name of platform_group"),
+    Param("platform_vsource", str, "", "VSOURCE="),
+    Param("terse_reports", bool, False, "leave out DEP, YAW, LAT, LON"),
+    Param("coord_policy_global", bool, False, "report LAT/LON only, no X/Y"),
+    Param("crossfill_policy", str, "literal", "literal, fill-empty, use-latest or global (x/y <-> lat/lon)"),
+    Param("nohelm_threshold", float, 5.0, "s without IVPHELM_STATE before MODE=NOHELM-<secs>", lo=0.0),
+    Param("blackout_interval", float, 0.0, "s between reports (0 = every iteration)", lo=0.0),
+    Param("blackout_variance", float, 0.0, "s of uniform jitter on the blackout interval", lo=0.0),
+    Param("node_report_output", str, "NODE_REPORT_LOCAL", "the variable the report goes to"),
+    Param("plat_report_input", list, [], "`VAR[,gap=secs][,alias=NAME]`, one per line"),
+    Param("plat_report_output", str, "PLATFORM_REPORT_LOCAL", "the variable the platform report goes to"),
+    Param("paused", bool, False, "start without reporting (PNR_PAUSE=false resumes)"),
+)
 REPORTER_INPUTS = ("NAV_X", "NAV_Y", "NAV_LAT", "NAV_LONG", "NAV_SPEED", "NAV_HEADING", "NAV_DEPTH", "NAV_YAW",
                    "NAV_TRANSP", "IVPHELM_SUMMARY", "IVPHELM_STATE", "IVPHELM_ALLSTOP", "AUX_MODE",
                    "LOAD_WARNING", "THRUST_MODE_REVERSE", "NODE_GROUP_UPDATE", "NODE_COLOR_CHANGE",
@@ -317,6 +319,7 @@ class NodeReporter(MOOSApp):
     """
 
     default_name = "pNodeReporter"
+    parameters = REPORTER_PARAMS
     example_config = """\
 ProcessConfig = pNodeReporter
 {
@@ -353,8 +356,7 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        params = read_params(self.config, lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input")))
-        warn_unhandled(self.config, REPORTER_CONFIG_KEYS)
+        params = read_params(self.config, ReporterParams.from_config)
         name = (self.mission.community if self.mission is not None else "") or "unknown"
         self.builder = NodeReportBuilder(name, params, mission_grid(self.mission))
 

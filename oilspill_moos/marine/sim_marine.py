@@ -13,18 +13,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import (
-    ConfigLike,
-    ConfigValueError,
-    config_bool,
-    config_float,
-    config_str,
-    format_number,
-    parse_bool,
-    parse_float,
-    read_params,
-    warn_unhandled,
-)
+from moosdb_py.formats import format_number, parse_pairs
+from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_bool, parse_float, read_params
 from oilspill_moos.geodesy import mission_grid
 
 log = logging.getLogger("oilspill_moos.marine.sim_marine")
@@ -49,9 +39,7 @@ class NavState:
         names = ("x", "y", "heading", "speed", "depth")
         values: dict[str, float] = {}
         if parts and all("=" in p for p in parts):
-            for part in parts:
-                key, _, value = part.partition("=")
-                key = key.strip().lower()
+            for key, value in parse_pairs(text).items():
                 if key not in names:
                     raise ConfigValueError(what, f"unknown field {key!r} (expected {', '.join(names)})")
                 values[key] = parse_float(value, f"{what} {key}")
@@ -136,40 +124,23 @@ class SimParams:
 
     @classmethod
     def from_config(cls, cfg: ConfigLike) -> "SimParams":
-        start_text = cfg.get("start_pos", None)
-        start = NavState.parse(start_text) if start_text else NavState()
+        v = SIM_PARAMS.read(cfg)
+        start = NavState.parse(v["start_pos"]) if v["start_pos"] else NavState()
         for name in ("x", "y", "heading", "speed", "depth"):
-            setattr(start, name, config_float(cfg, f"start_{name}", getattr(start, name)))
+            if v[f"start_{name}"] is not None:
+                setattr(start, name, v[f"start_{name}"])
         start.heading = angle360(start.heading)
-        factor = config_float(cfg, "thrust_factor", 20.0, lo=0.0)
-        reflect = config_bool(cfg, "thrust_reflect", False)
-        map_text = cfg.get("thrust_map", None)
-        thrust_map = ThrustMap.parse(map_text, factor, reflect) if map_text else ThrustMap(None, factor, reflect)
-        drift_x = config_float(cfg, "drift_x", 0.0)
-        drift_y = config_float(cfg, "drift_y", 0.0)
-        vector = cfg.get("drift_vector", None)
-        if vector:
-            dx, dy = parse_drift_vector(vector, "drift_vector")
+        factor, reflect = v["thrust_factor"], v["thrust_reflect"]
+        thrust_map = ThrustMap.parse(v["thrust_map"], factor, reflect) if v["thrust_map"] else ThrustMap(None, factor, reflect)
+        drift_x, drift_y = v["drift_x"], v["drift_y"]
+        if v["drift_vector"]:
+            dx, dy = parse_drift_vector(v["drift_vector"], "drift_vector")
             drift_x, drift_y = drift_x + dx, drift_y + dy
-        return cls(
-            start=start,
-            prefix=config_str(cfg, "prefix", "USM"),
-            turn_rate=config_float(cfg, "turn_rate", 70.0, 0.0, 100.0),
-            thrust_map=thrust_map,
-            max_acceleration=config_float(cfg, "max_acceleration", 0.0, lo=0.0),
-            max_deceleration=config_float(cfg, "max_deceleration", 0.5, lo=0.0),
-            turn_spd_loss=config_float(cfg, "turn_spd_loss", 0.85, 0.0, 1.0),
-            max_speed=config_float(cfg, "max_speed", 5.0, lo=0.0),
-            max_rudder_degs_per_sec=config_float(cfg, "max_rudder_degs_per_sec", 0.0, lo=0.0),
-            drift_x=drift_x,
-            drift_y=drift_y,
-            rotate_speed=config_float(cfg, "rotate_speed", 0.0),
-            buoyancy_rate=config_float(cfg, "buoyancy_rate", 0.025),
-            max_depth_rate=config_float(cfg, "max_depth_rate", 0.5, lo=0.0),
-            max_depth_rate_speed=config_float(cfg, "max_depth_rate_speed", 2.0, lo=0.0),
-            water_depth=config_float(cfg, "default_water_depth", 0.0, lo=0.0),
-            sim_pause=config_bool(cfg, "sim_pause", False),
-        )
+        same = ("prefix", "turn_rate", "max_acceleration", "max_deceleration", "turn_spd_loss", "max_speed",
+                "max_rudder_degs_per_sec", "rotate_speed", "buoyancy_rate", "max_depth_rate", "max_depth_rate_speed",
+                "sim_pause")
+        return cls(start=start, thrust_map=thrust_map, drift_x=drift_x, drift_y=drift_y,
+                   water_depth=v["default_water_depth"], **{name: v[name] for name in same})
 
 
 def parse_drift_vector(text: str, what: str) -> tuple[float, float]:
@@ -285,6 +256,32 @@ class MarineModel:
         return StepResult(math.hypot(vx, vy), hog)
 
 
+SIM_PARAMS = Params(
+    Param("start_pos", str, "", "start state `x=0, y=0, heading=0, speed=0[, depth=0]` or `x,y,heading,speed[,depth]`"),
+    *(Param(f"start_{name}", float, None, f"start {name}; wins over the same field of start_pos")
+      for name in ("x", "y", "heading", "speed", "depth")),
+    Param("prefix", str, "USM", "output prefix; missions use NAV"),
+    Param("turn_rate", float, 70.0, "deg/s at full rudder, speed >= 5 m/s, thrust 50", 0.0, 100.0),
+    Param("thrust_map", str, "", "thrust:speed pairs, e.g. `0:0, 20:1, 40:2, 60:3, 80:4, 100:5`"),
+    Param("thrust_factor", float, 20.0, "speed = thrust / thrust_factor when there is no thrust_map", lo=0.0),
+    Param("thrust_reflect", bool, False, "negative thrust mirrors the positive map"),
+    Param("max_acceleration", float, 0.0, "m/s^2, 0 = unlimited", lo=0.0),
+    Param("max_deceleration", float, 0.5, "m/s^2, 0 = unlimited", lo=0.0),
+    Param("turn_spd_loss", float, 0.85, "fraction of speed lost at full rudder", 0.0, 1.0),
+    Param("max_speed", float, 5.0, "NAV_SPEED is clipped to this", lo=0.0),
+    Param("max_rudder_degs_per_sec", float, 0.0, "rudder rate limit, 0 = a message moves it by at most 100", lo=0.0),
+    Param("drift_x", float, 0.0, "current, m/s east"),
+    Param("drift_y", float, 0.0, "current, m/s north"),
+    Param("drift_vector", str, "", "current as `angle,magnitude` (deg towards, m/s); added to drift_x/y"),
+    Param("rotate_speed", float, 0.0, "deg/s of external rotation"),
+    Param("buoyancy_rate", float, 0.025, "m/s, positive rises"),
+    Param("max_depth_rate", float, 0.5, "m/s at full elevator", lo=0.0),
+    Param("max_depth_rate_speed", float, 2.0, "speed at which the full depth rate is reached", lo=0.0),
+    Param("default_water_depth", float, 0.0, "> 0 enables <prefix>_ALTITUDE", lo=0.0),
+    Param("sim_pause", bool, False, "start paused (USM_SIM_PAUSED = false resumes)"),
+)
+
+
 class SimMarine(MOOSApp):
     """uSimMarine (uSimMarineV22): a simulated surface vehicle.
 
@@ -297,6 +294,7 @@ class SimMarine(MOOSApp):
     """
 
     default_name = "uSimMarine"
+    parameters = SIM_PARAMS
     example_config = """\
 ProcessConfig = uSimMarineV22
 {
@@ -342,7 +340,6 @@ PUBLICATIONS (every second iteration, with prefix NAV):
 
     def on_startup(self) -> None:
         self.params = read_params(self.config, SimParams.from_config)
-        warn_unhandled(self.config, SIM_CONFIG_KEYS)
         self.model = MarineModel(self.params)
         self.water_depth = self.params.water_depth
         self.grid = mission_grid(self.mission)
@@ -426,8 +423,8 @@ PUBLICATIONS (every second iteration, with prefix NAV):
         self.notify(f"{prefix}_SPEED_OVER_GROUND", self.last_result.speed_over_ground, now)
         if self.water_depth > 0.0:
             self.notify(f"{prefix}_ALTITUDE", max(0.0, self.water_depth - s.depth), now)
-        summary = (f"ang={format_number(self.model.drift_angle)},mag={format_number(self.model.drift_magnitude)},"
-                   f"xmag={format_number(self.model.drift_x)},ymag={format_number(self.model.drift_y)}")
+        summary = (f"ang={format_number(self.model.drift_angle, 2)},mag={format_number(self.model.drift_magnitude, 2)},"
+                   f"xmag={format_number(self.model.drift_x, 2)},ymag={format_number(self.model.drift_y, 2)}")
         if summary != self._drift_summary_posted:
             self.notify("USM_DRIFT_SUMMARY", summary, now)
             self._drift_summary_posted = summary
@@ -438,11 +435,6 @@ PUBLICATIONS (every second iteration, with prefix NAV):
                 "rudder": round(self.model.rudder, 1), "thrust": round(self.model.thrust, 1)}
 
 
-SIM_CONFIG_KEYS = frozenset({
-    "start_pos", "start_x", "start_y", "start_heading", "start_speed", "start_depth", "prefix", "turn_rate",
-    "thrust_map", "thrust_factor", "thrust_reflect", "max_acceleration", "max_deceleration", "turn_spd_loss",
-    "max_speed", "max_rudder_degs_per_sec", "drift_x", "drift_y", "drift_vector", "rotate_speed",
-    "buoyancy_rate", "max_depth_rate", "max_depth_rate_speed", "default_water_depth", "sim_pause"})
 SIM_INPUTS = ("DESIRED_RUDDER", "DESIRED_THRUST", "DESIRED_ELEVATOR", "DRIFT_X", "DRIFT_Y", "CURRENT_X",
               "CURRENT_Y", "DRIFT_VECTOR", "DRIFT_VECTOR_ADD", "DRIFT_VECTOR_MULT", "ROTATE_SPEED",
               "BUOYANCY_RATE", "WATER_DEPTH", "USM_TURN_RATE", "USM_SIM_PAUSED", "USM_RESET")

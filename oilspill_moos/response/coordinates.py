@@ -8,12 +8,9 @@ navigation solution is known.
 from __future__ import annotations
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_str, warn_unhandled
-
-
-def coordinates_report(vname: str, x: float, y: float, utc: float) -> str:
-    """The VEHICLE_COORDINATES value pPathAssign reads."""
-    return f"vname={vname},x={x:.2f},y={y:.2f},utc={utc:.2f}"
+from moosdb_py.config import Param, Params
+from moosdb_py.formats import FormatError, parse_bool
+from oilspill_moos.messages import coordinates_report
 
 
 class Coordinates(MOOSApp):
@@ -21,6 +18,7 @@ class Coordinates(MOOSApp):
     and on every REPORT_COORDINATES request, for pPathAssign's planning cycle."""
 
     default_name = "pCoordinates"
+    parameters = Params(Param("vname", str, "", "name put in the report; default: the mission's Community"))
     example_config = """\
 ProcessConfig = pCoordinates
 {
@@ -43,8 +41,7 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         community = self.mission.community if self.mission is not None else ""
-        self.vname = config_str(self.config, "vname", community or self.name).lower()
-        warn_unhandled(self.config, {"vname"})
+        self.vname = (self.read_settings()["vname"] or community or self.name).lower()
         self.nav_x: float | None = None
         self.nav_y: float | None = None
         self.station_keeping = False
@@ -62,7 +59,10 @@ PUBLICATIONS:
             elif msg.key == "NAV_Y" and msg.is_double():
                 self.nav_y = msg.double
             elif msg.key == "STATION_KEEP":
-                keeping = str(msg.value).strip().lower() == "true"
+                try:
+                    keeping = parse_bool(str(msg.value))
+                except FormatError:
+                    keeping = False
                 self.pending |= keeping and not self.station_keeping
                 self.station_keeping = keeping
             elif msg.key == "REPORT_COORDINATES":

@@ -6,10 +6,8 @@ range the sensor's detection radius: oil=1 means "oil within range metres"). The
 one forecast cycle's observations, throwing out (with a reason) what cannot be trusted; the
 boundary estimate and the skill score compare what the vessels saw with the forecast in force.
 
-`ScenarioMap` ties the mission's local frame to the world of a spill scenario: a simulated
-fleet cannot circle a 10 km slick at 2 m/s in a test, so the scenario is shrunk about the
-mission origin by `map_scale` (1 = true size); everything that crosses between the MOOS side and
-the forecaster goes through it.
+The messages' codecs live in oilspill_moos.messages; the scenario's placement in the mission
+frame in `scenario_map.ScenarioMap`.
 """
 from __future__ import annotations
 
@@ -26,59 +24,18 @@ from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import (ConfigValueError, config_float, config_str, format_number, parse_pairs, read_params,
-                                      warn_unhandled)
-from oilspill_moos.geodesy import LocalGrid, mission_grid
-
-
-class ObservationRejected(ValueError):
-    """An observation the fusion will not use; str() is the reason posted in OIL_FUSION_WARNING."""
-
-
-@dataclass(frozen=True)
-class Observation:
-    vname: str
-    id: int
-    utc: float
-    x: float
-    y: float
-    oil: bool
-    range_m: float = 0.0
-    thickness: str = ""
-
-
-def parse_observation(text: str) -> Observation:
-    """`vname=abe,id=3,utc=..,x=..,y=..,oil=1,range=..` -> Observation, or ObservationRejected saying why."""
-    try:
-        fields = parse_pairs(text)
-    except ValueError as exc:
-        raise ObservationRejected(f"malformed observation {text!r}: {exc}") from None
-    missing = [k for k in ("vname", "id", "utc", "x", "y", "oil") if k not in fields]
-    if missing:
-        raise ObservationRejected(f"observation {text!r} lacks {', '.join(missing)}")
-    try:
-        obs = Observation(vname=fields["vname"].lower(), id=int(fields["id"]), utc=float(fields["utc"]),
-                          x=float(fields["x"]), y=float(fields["y"]), oil=_flag(fields["oil"]),
-                          range_m=float(fields.get("range", 0.0)), thickness=fields.get("thickness", ""))
-    except ValueError:
-        raise ObservationRejected(f"observation {text!r}: id, utc, x, y, range must be numbers, oil 0 or 1") from None
-    if not all(map(math.isfinite, (obs.utc, obs.x, obs.y, obs.range_m))) or obs.range_m < 0:
-        raise ObservationRejected(f"observation {text!r}: non-finite number or negative range")
-    return obs
-
-
-def _flag(text: str) -> bool:
-    if text.lower() in ("1", "true"):
-        return True
-    if text.lower() in ("0", "false"):
-        return False
-    raise ValueError(text)
-
-
-def format_observation(obs: Observation) -> str:
-    text = (f"vname={obs.vname},id={obs.id},utc={obs.utc:.2f},x={format_number(obs.x)},y={format_number(obs.y)},"
-            f"oil={int(obs.oil)},range={format_number(obs.range_m)}")
-    return text + (f",thickness={obs.thickness}" if obs.thickness else "")
+from moosdb_py.config import ConfigValueError, Param, Params, read_params
+from moosdb_py.formats import format_number
+from oilspill_moos.geodesy import mission_grid
+from oilspill_moos.messages import (
+    BoundaryError,
+    Observation,
+    ObservationRejected,
+    operating_area,
+    parse_observation,
+    parse_polygon_string,
+)
+from oilspill_moos.response.scenario_map import ScenarioMap
 
 
 @dataclass
@@ -171,36 +128,15 @@ def skill(forecast: BaseGeometry, observations: list[Observation], max_gap_m: fl
             "agreement": float(np.mean(predicted == seen)), "flips": len(flips), "boundary_error_m": error}
 
 
-@dataclass(frozen=True)
-class ScenarioMap:
-    """Mission local metres <-> a scenario's lon/lat, the scenario shrunk by `map_scale` about the origin."""
-
-    grid: LocalGrid
-    map_scale: float = 1.0
-
-    def __post_init__(self):
-        if not (math.isfinite(self.map_scale) and self.map_scale > 0):
-            raise ValueError(f"map_scale {self.map_scale!r} must be a positive number")
-
-    def to_lonlat(self, x, y) -> tuple[np.ndarray, np.ndarray]:
-        lat, lon = self.grid.to_latlon(np.asarray(x, float) / self.map_scale, np.asarray(y, float) / self.map_scale)
-        return np.asarray(lon), np.asarray(lat)
-
-    def to_local(self, geometry: BaseGeometry) -> BaseGeometry:
-        """An EPSG:4326 geometry ([lon, lat] coordinates) in mission metres."""
-        def forward(coords):
-            x, y = self.grid.to_local(coords[:, 1], coords[:, 0])
-            return np.column_stack([x, y]) * self.map_scale
-        return shapely.transform(geometry, forward)
-
-    def real_metres(self, metres: float) -> float:
-        return metres / self.map_scale
-
-
-def polygon_string(polygon: Polygon, label: str) -> str:
-    """A MOOS `pts={x,y:...},label=..` spec of a polygon's exterior, for viewers."""
-    coords = np.asarray(polygon.exterior.coords)[:-1]
-    return "pts={" + ":".join(f"{x:.1f},{y:.1f}" for x, y in coords) + "}," + f"label={label}"
+FUSION_PARAMS = Params(
+    Param("fleet", str, "", "vehicles whose observations count, abe:ben:cal; empty: any"),
+    Param("operating_area", str, "", "pts={x,y:...} observations must lie in; empty: use the radius"),
+    Param("operating_radius", float, 0.0, "m about the origin observations must lie within; 0: anywhere", lo=0),
+    Param("map_scale", float, 1.0, "as uFldOilSensor's: mission metres per real metre", lo=1e-6),
+    Param("max_flip_gap", float, 50.0, "m: consecutive samples further apart give no edge point", lo=0),
+    Param("feedback_file", str, "", "JSON-lines file for `oilspill-forecaster --feedback`; empty: none"),
+    Param("report_interval", float, 5.0, "s between OIL_FUSION_SKILL / OIL_OBSERVED_EDGE posts", lo=0.1),
+)
 
 
 class OilFusion(MOOSApp):
@@ -211,6 +147,7 @@ class OilFusion(MOOSApp):
     every accepted observation (in the scenario's lon/lat) to the forecaster's feedback file."""
 
     default_name = "uFldOilFusion"
+    parameters = FUSION_PARAMS
     example_config = """\
 ProcessConfig = uFldOilFusion
 {
@@ -240,26 +177,21 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         read_params(self.config, self._read)
-        warn_unhandled(self.config, FUSION_CONFIG_KEYS)
         self.forecast: Polygon | None = None
         self._last_report = -math.inf
 
     def _read(self, cfg) -> None:
-        from oilspill_moos.response.path_assign import BoundaryError, operating_area
-
-        fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
+        v = FUSION_PARAMS.read(cfg)
+        fleet = frozenset(n.lower() for n in re.split(r"[\s:,]+", v["fleet"]) if n)
         try:
-            area = operating_area(config_str(cfg, "operating_area", ""),
-                                  config_float(cfg, "operating_radius", 0.0, lo=0))
+            area = operating_area(v["operating_area"], v["operating_radius"])
         except BoundaryError as exc:
             raise ConfigValueError("operating_area", str(exc)) from None
         self.collector = ObservationCollector(fleet=fleet, area=area)
-        self.max_gap = config_float(cfg, "max_flip_gap", 50.0, lo=0)
-        self.report_interval = config_float(cfg, "report_interval", 5.0, lo=0.1)
-        feedback = config_str(cfg, "feedback_file", "")
-        self.feedback_file = Path(feedback) if feedback else None
+        self.max_gap, self.report_interval = v["max_flip_gap"], v["report_interval"]
+        self.feedback_file = Path(v["feedback_file"]) if v["feedback_file"] else None
         grid = mission_grid(self.mission)
-        self.world = ScenarioMap(grid, config_float(cfg, "map_scale", 1.0, lo=1e-6)) if grid is not None else None
+        self.world = ScenarioMap(grid, v["map_scale"]) if grid is not None else None
         if self.feedback_file is not None and self.world is None:
             raise ConfigValueError("feedback_file", "needs LatOrigin and LongOrigin in the mission file")
 
@@ -283,15 +215,14 @@ PUBLICATIONS:
             self._write_feedback(accepted)
 
     def _new_cycle(self, spec: str) -> None:
-        from oilspill_moos.response.path_assign import BoundaryError, parse_polygon_spec
-
         try:
-            polygon = shapely.make_valid(Polygon(parse_polygon_spec(spec)))
+            vertices, fields = parse_polygon_string(spec)
+            polygon = shapely.make_valid(Polygon(vertices))
         except (BoundaryError, ValueError) as exc:
             self.notify("OIL_FUSION_WARNING", f"OILSPILL_BOUNDARY {spec[:60]!r}: {exc}")
             return
         self._post_report()      # the ending cycle's last word
-        label = parse_pairs(spec.partition("}")[2].lstrip(",")).get("label", "")
+        label = fields.get("label", "")
         self.forecast = polygon
         self.collector.begin_cycle(label)
 
@@ -313,7 +244,7 @@ PUBLICATIONS:
         if self.forecast is None or not observations:
             return
         scores = skill(self.forecast, observations, self.max_gap)
-        fields = {"cycle": self.collector.cycle, **{k: (format_number(v) if isinstance(v, float) and
+        fields = {"cycle": self.collector.cycle, **{k: (format_number(v, 2) if isinstance(v, float) and
                                                         math.isfinite(v) else v) for k, v in scores.items()},
                   "rejected": sum(self.collector.rejected.values()), "duplicates": self.collector.duplicates}
         self.notify("OIL_FUSION_SKILL", ",".join(f"{k}={v}" for k, v in fields.items()))
@@ -326,7 +257,5 @@ PUBLICATIONS:
                 "rejected": sum(self.collector.rejected.values()), "duplicates": self.collector.duplicates}
 
 
-FUSION_CONFIG_KEYS = frozenset({
-    "fleet", "operating_area", "operating_radius", "max_flip_gap", "report_interval", "feedback_file", "map_scale"})
 
 main = OilFusion.main

@@ -11,10 +11,17 @@ from __future__ import annotations
 import math
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_float, config_str, read_params, warn_unhandled
-from oilspill_moos.response.oil_fusion import ObservationRejected, format_observation, parse_observation
+from moosdb_py.config import Param, Params
+from oilspill_moos.messages import ObservationRejected, format_observation, format_request, parse_observation
 
 SUBSCRIPTIONS = ("NAV_X", "NAV_Y", "OILSPILL_PHASE", "OIL_SENSOR_REPORT")
+
+
+SAMPLER_PARAMS = Params(
+    Param("vname", str, "", "the vehicle's name in requests (default: the mission's Community)"),
+    Param("sample_interval", float, 5.0, "s (mission time) between sensor requests", lo=0.01),
+    Param("sample_phases", str, "STARTING-POSITION, OIL-PATH", "OILSPILL_PHASE values to sample in; any: always"),
+)
 
 
 class OilSampler(MOOSApp):
@@ -22,6 +29,7 @@ class OilSampler(MOOSApp):
     and reports detections and non-detections as OIL_OBSERVATION (position, time, oil flag)."""
 
     default_name = "pOilSampler"
+    parameters = SAMPLER_PARAMS
     example_config = """\
 ProcessConfig = pOilSampler
 {
@@ -47,20 +55,17 @@ PUBLICATIONS:
 
     def on_startup(self) -> None:
         community = self.mission.community if self.mission is not None else ""
-        read_params(self.config, self._read)
-        warn_unhandled(self.config, SAMPLER_CONFIG_KEYS)
-        self.vname = config_str(self.config, "vname", community or self.name).lower()
+        v = self.read_settings()
+        self.vname = (v["vname"] or community or self.name).lower()
+        self.sample_interval = v["sample_interval"]
+        phases = v["sample_phases"]
+        self.phases = None if phases.lower() == "any" else {p.strip().upper() for p in phases.split(",") if p.strip()}
         self.nav_x = self.nav_y = None
         self.phase = ""
         self.next_id = 1
         self.last_request = -math.inf
         self.pending: set[int] = set()
         self.reported = self.refused = 0
-
-    def _read(self, cfg) -> None:
-        self.sample_interval = config_float(cfg, "sample_interval", 5.0, lo=0.01)
-        phases = config_str(cfg, "sample_phases", "STARTING-POSITION, OIL-PATH")
-        self.phases = None if phases.lower() == "any" else {p.strip().upper() for p in phases.split(",") if p.strip()}
 
     def on_connect(self) -> None:
         for key in SUBSCRIPTIONS:
@@ -100,13 +105,11 @@ PUBLICATIONS:
         self.last_request = now
         ident, self.next_id = self.next_id, self.next_id + 1
         self.pending = {i for i in self.pending if i > ident - 100} | {ident}   # forget long-lost requests
-        self.notify("OIL_SENSOR_REQUEST", f"vname={self.vname},id={ident},x={self.nav_x:.2f},y={self.nav_y:.2f}")
+        self.notify("OIL_SENSOR_REQUEST", format_request(self.vname, ident, self.nav_x, self.nav_y))
 
     def status_fields(self) -> dict:
         return {"requested": self.next_id - 1, "reported": self.reported, "unanswered": len(self.pending),
                 "refused": self.refused, "phase": self.phase or "-"}
 
-
-SAMPLER_CONFIG_KEYS = frozenset({"vname", "sample_interval", "sample_phases"})
 
 main = OilSampler.main

@@ -5,7 +5,7 @@ the shoreside holds the ground truth, a vehicle asks (`OIL_SENSOR_REQUEST`, brid
 community), and the answer goes back on `OIL_SENSOR_REPORT_<V>` (qbridged to the vehicle). The
 truth is a scenario of the forecaster's committed OpenOil dataset: its hourly polygons replayed on
 the mission's warped clock, shrunk by `map_scale` about the mission origin (see
-`oil_fusion.ScenarioMap`). Replies carry the simulated world's time (`utc`, the scenario clock),
+`scenario_map.ScenarioMap`). Replies carry the simulated world's time (`utc`, the scenario clock),
 so what the fleet reports can be set against the forecaster's own polygon times.
 """
 from __future__ import annotations
@@ -18,9 +18,11 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import ConfigValueError, config_float, config_str, parse_pairs, read_params, warn_unhandled
+from moosdb_py.formats import parse_pairs
+from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
-from oilspill_moos.response.oil_fusion import Observation, ScenarioMap, format_observation, polygon_string
+from oilspill_moos.messages import Observation, format_observation, parse_request, polygon_string
+from oilspill_moos.response.scenario_map import ScenarioMap
 
 THICKNESS_CLASSES = ("sheen", "thick")
 
@@ -79,18 +81,18 @@ class SensorModel:
         return True, THICKNESS_CLASSES[depth >= self.thickness_depth]
 
 
-def parse_request(text: str) -> tuple[str, int, float, float]:
-    """`vname=abe,id=3,x=..,y=..` -> (vname, id, x, y); ValueError naming what is wrong."""
-    fields = parse_pairs(text)
-    try:
-        vname, ident, x, y = fields["vname"].lower(), int(fields["id"]), float(fields["x"]), float(fields["y"])
-    except KeyError as exc:
-        raise ValueError(f"request {text!r} lacks {exc.args[0]}") from None
-    except ValueError:
-        raise ValueError(f"request {text!r}: id, x, y must be numbers") from None
-    if not vname or not (math.isfinite(x) and math.isfinite(y)):
-        raise ValueError(f"request {text!r}: empty vname or non-finite position")
-    return vname, ident, x, y
+SENSOR_PARAMS = Params(
+    Param("scenario", str, "steady_growth-2111", "scenario_id of the committed dataset (the truth)"),
+    Param("start_hour", float, 16.0, "scenario hour (since release) at the app's start", lo=0),
+    Param("time_scale", float, 1.0, "scenario hours per mission hour (on top of MOOSTimeWarp)", lo=0),
+    Param("map_scale", float, 1.0, "mission metres per real metre: shrinks the spill about the origin", lo=1e-6),
+    Param("sensor_range", float, 15.0, "m (mission frame): \"oil\" means oil within this distance", lo=0),
+    Param("false_positive", float, 0.0, "probability of reporting oil where there is none", 0, 1),
+    Param("false_negative", float, 0.0, "probability of missing oil that is there", 0, 1),
+    Param("thickness_depth", float, 0.0, "m inside the edge from which a detection is \"thick\"; 0: no class", lo=0),
+    Param("seed", int, 0, "random seed of the sensor noise"),
+    Param("truth_interval", float, 10.0, "s between VIEW_POLYGON posts of the truth (label=oil_truth)", lo=0.1),
+)
 
 
 class OilSensor(MOOSApp):
@@ -100,6 +102,7 @@ class OilSensor(MOOSApp):
     false-negative rates and an optional thickness class."""
 
     default_name = "uFldOilSensor"
+    parameters = SENSOR_PARAMS
     example_config = """\
 ProcessConfig = uFldOilSensor
 {
@@ -137,7 +140,6 @@ PUBLICATIONS:
             where = self.mission.path if self.mission is not None else "no mission file"
             raise ValueError(f"{where}: needs LatOrigin and LongOrigin (the scenario is placed about them)")
         read_params(self.config, self._read)
-        warn_unhandled(self.config, SENSOR_CONFIG_KEYS)
         self.answered = self.refused = 0
         self.clock_start: float | None = None
         self._last_truth_post = -math.inf
@@ -146,20 +148,17 @@ PUBLICATIONS:
     def _read(self, cfg) -> None:
         from oilspill_moos.forecaster.dataset import load_dataset
 
-        world = ScenarioMap(self.grid, config_float(cfg, "map_scale", 1.0, lo=1e-6))
-        wanted = config_str(cfg, "scenario", "steady_growth-2111")
+        v = SENSOR_PARAMS.read(cfg)
+        world = ScenarioMap(self.grid, v["map_scale"])
+        wanted = v["scenario"]
         scenario = next((s for s in load_dataset() if s.scenario_id == wanted), None)
         if scenario is None:
             raise ConfigValueError("scenario", f"{wanted!r} is no scenario_id of the committed dataset")
         self.truth = TruthSpill.from_scenario(scenario, world)
-        self.start_hour = config_float(cfg, "start_hour", 16.0, lo=0)
-        self.time_scale = config_float(cfg, "time_scale", 1.0, lo=0)
-        self.truth_interval = config_float(cfg, "truth_interval", 10.0, lo=0.1)
-        self.sensor = SensorModel(range_m=config_float(cfg, "sensor_range", 15.0, lo=0),
-                                  false_positive=config_float(cfg, "false_positive", 0.0, lo=0, hi=1),
-                                  false_negative=config_float(cfg, "false_negative", 0.0, lo=0, hi=1),
-                                  thickness_depth=config_float(cfg, "thickness_depth", 0.0, lo=0),
-                                  seed=int(config_float(cfg, "seed", 0)))
+        self.start_hour, self.time_scale, self.truth_interval = v["start_hour"], v["time_scale"], v["truth_interval"]
+        self.sensor = SensorModel(range_m=v["sensor_range"], false_positive=v["false_positive"],
+                                  false_negative=v["false_negative"], thickness_depth=v["thickness_depth"],
+                                  seed=v["seed"])
 
     def on_connect(self) -> None:
         self.register("OIL_SENSOR_REQUEST")
@@ -213,8 +212,5 @@ PUBLICATIONS:
         return {"answered": self.answered, "refused": self.refused, "hour": f"{self.hour():.2f}"}
 
 
-SENSOR_CONFIG_KEYS = frozenset({
-    "scenario", "map_scale", "start_hour", "time_scale", "truth_interval", "sensor_range", "false_positive",
-    "false_negative", "thickness_depth", "seed"})
 
 main = OilSensor.main

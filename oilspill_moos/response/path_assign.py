@@ -8,20 +8,28 @@ MOOSApp shell that owns the TCP server and the MOOS client.
 from __future__ import annotations
 
 import asyncio
-import json
 import math
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-import numpy as np
-import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Polygon
 
-from behaviors.geometry import fmt_num
 from moosdb_py.app import MOOSApp
-from oilspill_moos.app_config import config_float, config_str
+from moosdb_py.config import Param, Params
+from moosdb_py.formats import format_number
 from oilspill_moos.geodesy import LocalGrid
+from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygon_spec: demo.py imports them from here)
+    Boundary,
+    BoundaryError,
+    format_forecast,
+    format_points,
+    operating_area,
+    parse_boundary_line,
+    parse_polygon_spec,
+    parse_report,
+    points_update,
+    polygon_string,
+)
 from oilspill_moos.response.planner import (
     Plan,
     PlanError,
@@ -36,125 +44,6 @@ IDLE = "IDLE"
 STATION_KEEPING = "STATION-KEEPING"
 STARTING_POSITION = "STARTING-POSITION"
 OIL_PATH = "OIL-PATH"
-
-
-class BoundaryError(ValueError):
-    """A boundary line pPathAssign refuses; str() goes back to the sender after `ERR `."""
-
-
-@dataclass(frozen=True)
-class Boundary:
-    """A predicted spill outline in local metres, with the forecast it came from."""
-
-    polygon: tuple[tuple[float, float], ...]
-    time: float | None = None     # when the outline is valid (UTC s): issue time + horizon
-    horizon_h: float = 0.0
-    uncertainty_m: float = 0.0
-    source: str = "tcp"
-
-    @property
-    def issued(self) -> float | None:
-        """When the forecast was made; the lines of one forecast (one per horizon) share it."""
-        return None if self.time is None else self.time - 3600.0 * self.horizon_h
-
-
-_PTS = re.compile(r"^\s*pts\s*=\s*\{(?P<body>[^}]*)\}\s*(?:,.*)?$", re.IGNORECASE)
-
-
-def parse_polygon_spec(text: str) -> list[tuple[float, float]]:
-    """`pts={x1,y1:x2,y2:...}[,label=..]` -> vertices (a third number per vertex, z, is ignored)."""
-    match = _PTS.match(text)
-    if not match:
-        raise BoundaryError("expected a JSON object or pts={x1,y1:x2,y2:...}")
-    vertices = []
-    for index, item in enumerate(match["body"].split(":")):
-        fields = [f.strip() for f in item.split(",")]
-        try:
-            x, y = float(fields[0]), float(fields[1])
-        except (ValueError, IndexError):
-            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} is not x,y") from None
-        if len(fields) > 3:
-            raise BoundaryError(f"vertex {index + 1} {item.strip()!r} has more than x,y,z")
-        vertices.append((x, y))
-    return vertices
-
-
-def parse_boundary_line(line: str, grid=None) -> Boundary:
-    """One forecaster line -> Boundary in local metres.
-
-    JSON polygons in EPSG:4326 are [lon, lat] pairs (x before y, as pyproj's
-    always_xy) and need `grid` (the mission's LatOrigin/LongOrigin).
-    """
-    text = line.strip()
-    if not text:
-        raise BoundaryError("empty line")
-    if not text.startswith("{"):
-        return Boundary(polygon=tuple(parse_polygon_spec(text)), source="pts")
-    try:
-        message = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise BoundaryError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
-    if not isinstance(message, dict):
-        raise BoundaryError("JSON line must be an object")
-    if message.get("type", "boundary") != "boundary":
-        raise BoundaryError(f"unknown message type {message.get('type')!r}")
-    vertices = message.get("polygon")
-    if not isinstance(vertices, list) or not all(isinstance(v, list) and len(v) == 2 for v in vertices):
-        raise BoundaryError("'polygon' must be a list of [x, y] pairs")
-    try:
-        xy = np.asarray(vertices, dtype=float).reshape(-1, 2)
-        number = {key: float(message.get(key, default)) for key, default in
-                  (("horizon_h", 0.0), ("uncertainty_m", 0.0))}
-        stamp = None if message.get("time") is None else float(message["time"])
-    except (TypeError, ValueError):
-        raise BoundaryError("'polygon', 'time', 'horizon_h' and 'uncertainty_m' must be numbers") from None
-    if not np.all(np.isfinite(xy)) or not all(map(math.isfinite, number.values())):
-        raise BoundaryError("non-finite number in boundary")
-    crs = message.get("crs", "local")
-    if crs == "EPSG:4326":
-        if grid is None:
-            raise BoundaryError("EPSG:4326 boundary but the mission has no LatOrigin/LongOrigin")
-        if np.any(np.abs(xy[:, 1]) > 90) or np.any(np.abs(xy[:, 0]) > 180):
-            raise BoundaryError("EPSG:4326 polygon must be [lon, lat] pairs in degrees")
-        x, y = grid.to_local(xy[:, 1], xy[:, 0])
-        xy = np.column_stack([x, y])
-    elif crs != "local":
-        raise BoundaryError(f"crs must be 'EPSG:4326' or 'local', not {crs!r}")
-    return Boundary(polygon=tuple(map(tuple, xy.tolist())), time=stamp, source=str(message.get("source", "json")),
-                    **number)
-
-
-def format_points(points: Iterable[Iterable[float]]) -> str:
-    """Vertices as the `x,y:x,y` list BHV_Waypoint reads (decimetre precision)."""
-    return ":".join(f"{x:.1f},{y:.1f}" for x, y in points)
-
-
-_UNSAFE = re.compile(r"[\s,={}#]+")
-
-
-def format_forecast(boundary: Boundary, cycle: int) -> str:
-    """OILSPILL_FORECAST: one accepted horizon with what a viewer needs to draw it and its band.
-
-    `pts={..}` goes last and the source loses the characters that separate MOOS fields, so the
-    string splits on commas outside the braces like any VIEW_* string.
-    """
-    fields = [f"cycle={cycle}", f"horizon={fmt_num(boundary.horizon_h)}"]
-    if boundary.time is not None:
-        fields.append(f"valid={fmt_num(boundary.time)}")
-    fields += [f"uncertainty={fmt_num(boundary.uncertainty_m)}",
-               f"source={_UNSAFE.sub('_', boundary.source) or 'unknown'}",
-               f"pts={{{format_points(boundary.polygon)}}}"]
-    return ",".join(fields)
-
-
-def parse_report(text: str) -> dict[str, str]:
-    """`KEY=val,KEY=val` (NODE_REPORT, VEHICLE_COORDINATES) -> dict with lower-case keys."""
-    fields = {}
-    for item in text.split(","):
-        key, sep, value = item.partition("=")
-        if sep:
-            fields[key.strip().lower()] = value.strip()
-    return fields
 
 
 @dataclass
@@ -345,7 +234,7 @@ class Coordinator:
             "dropped": sum(v.dropped for v in self.vehicles.values()),
             "boundaries": self.seq,
             "cycle": self.cycles,
-            "horizon": -1 if self.horizon is None else fmt_num(self.horizon),
+            "horizon": -1 if self.horizon is None else format_number(self.horizon, 3),
             "boundary_age": -1 if self.boundary_received is None else round(now - self.boundary_received, 1),
         }
 
@@ -391,20 +280,18 @@ class Coordinator:
         if self.horizon == horizon and self._boundary_seq == self.forecast_seq[horizon]:
             return
         self.horizon, self._boundary_seq = horizon, self.forecast_seq[horizon]
-        self._post("OILSPILL_BOUNDARY", f"pts={{{format_points(self.forecasts[horizon].polygon)}}},"
-                                        f"label=oilspill_{self._boundary_seq}")
+        self._post("OILSPILL_BOUNDARY", polygon_string(self.forecasts[horizon].polygon, f"oilspill_{self._boundary_seq}"))
 
     def _assign_starts(self, plan: Plan, now: float) -> None:
         self.plan = plan
         self.arrived = set()
         self._set_phase(STARTING_POSITION, now)
-        self._post("VIEW_POLYGON", f"pts={{{format_points(plan.region.exterior.coords[:-1])}}},"
-                                   f"label=standoff,edge_color=orange")
+        self._post("VIEW_POLYGON", polygon_string(plan.region, "standoff", edge_color="orange"))
         for name, start in plan.starts.items():
             suffix = name.upper()
             vehicle = self.vehicles[name]
             route = [start] if vehicle.x is None else transit_route(plan.region, (vehicle.x, vehicle.y), start)
-            self._post(f"STARTING_POSITION_UPDATES_{suffix}", f"points={format_points(route)}")
+            self._post(f"STARTING_POSITION_UPDATES_{suffix}", points_update(route))
             self._post(f"STATION_KEEP_{suffix}", "false")
             self._post(f"OILSPILL_PHASE_{suffix}", STARTING_POSITION)
         for name in plan.starts:  # someone may already be sitting on their point
@@ -417,11 +304,10 @@ class Coordinator:
 
     def _begin_oil_path(self, now: float) -> None:
         self._set_phase(OIL_PATH, now)
-        speed = f"#speed={self.settings.loop_speed:g}" if self.settings.loop_speed > 0 else ""
+        speed = {"speed": self.settings.loop_speed} if self.settings.loop_speed > 0 else {}
         for name in self.plan.starts:
             suffix = name.upper()
-            self._post(f"OIL_PATH_UPDATES_{suffix}",
-                       f"points={format_points(self.plan.loop(name))}#repeat=forever{speed}")
+            self._post(f"OIL_PATH_UPDATES_{suffix}", points_update(self.plan.loop(name), repeat="forever", **speed))
             self._post(f"STATION_KEEP_{suffix}", "false")
             self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
 
@@ -495,14 +381,29 @@ class Coordinator:
         return posts
 
 
-def operating_area(spec: str | None, radius: float) -> Polygon | None:
-    """`operating_area` (a pts={} polygon) wins over `operating_radius` (a circle about the origin)."""
-    if spec:
-        return Polygon(parse_polygon_spec(spec))
-    return shapely.buffer(Point(0.0, 0.0), radius) if radius > 0 else None
-
-
 MAX_LINE = 1 << 20  # a forecast outline of ~20000 vertices; longer lines are refused, not buffered
+
+
+PATH_ASSIGN_PARAMS = Params(
+    Param("boundary_host", str, "127.0.0.1", "TCP boundary server address (loopback unless you mean it)"),
+    Param("boundary_port", int, 9100, "its port", 0, 65535),
+    Param("fleet", str, "", "expected vehicles, abe:ben:cal; empty: whoever reports"),
+    Param("standoff", float, 50.0, "metres the loop stays outside the predicted boundary", lo=0),
+    Param("coordinate_timeout", float, 30.0, "s to wait for every VEHICLE_COORDINATES before planning", lo=0),
+    Param("arrival_timeout", float, 600.0, "s after which the loops start even if someone is not at its point", lo=0),
+    Param("node_timeout", float, 20.0, "s without NODE_REPORT before a vehicle is dropped", lo=0),
+    Param("capture_radius", float, 10.0, "m from its start that counts as arrived (backs up the flag)", lo=0),
+    Param("transit_speed", float, 2.0, "m/s used to estimate arrival when choosing a forecast horizon", lo=1e-3),
+    Param("loop_speed", float, 0.0, "m/s sent with the loops; 0 keeps the vehicles' own setting", lo=0),
+    Param("min_replan_interval", float, 10.0, "s between accepted boundaries of different forecasts", lo=0),
+    Param("forecast_window", float, 5.0, "s to collect the lines (horizons) of one forecast before choosing", lo=0),
+    Param("forecast_horizons", str, "3:7:11:15", "h a forecast brings; once all are in the choice need not wait"),
+    Param("replan_distance", float, 25.0, "m a late line of the forecast in force must move the loop to re-plan", lo=0),
+    Param("heartbeat_interval", float, 5.0, "s between SHORE_HEARTBEAT_ALL posts (vehicle watchdogs)", lo=0.1),
+    Param("status_interval", float, 2.0, "s between OILSPILL_STATUS posts", lo=0.1),
+    Param("operating_area", str, "", "pts={x,y:...}: boundaries must touch it; empty: use the radius"),
+    Param("operating_radius", float, 0.0, "m about the origin boundaries must touch; 0: anywhere", lo=0),
+)
 
 
 class PathAssign(MOOSApp):
@@ -512,6 +413,7 @@ class PathAssign(MOOSApp):
     vehicle drops out or comes back."""
 
     default_name = "pPathAssign"
+    parameters = PATH_ASSIGN_PARAMS
     example_config = """\
 ProcessConfig = pPathAssign
 {
@@ -569,31 +471,19 @@ PUBLICATIONS:
 """
 
     def on_startup(self) -> None:
-        cfg = self.config
-        fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", config_str(cfg, "fleet", "")) if n)
-        self.coordinator = Coordinator(Settings(
-            standoff=config_float(cfg, "standoff", 50.0, lo=0),
-            coordinate_timeout=config_float(cfg, "coordinate_timeout", 30.0, lo=0),
-            arrival_timeout=config_float(cfg, "arrival_timeout", 600.0, lo=0),
-            node_timeout=config_float(cfg, "node_timeout", 20.0, lo=0),
-            capture_radius=config_float(cfg, "capture_radius", 10.0, lo=0),
-            transit_speed=config_float(cfg, "transit_speed", 2.0, lo=1e-3),
-            loop_speed=config_float(cfg, "loop_speed", 0.0, lo=0),
-            min_replan_interval=config_float(cfg, "min_replan_interval", 10.0, lo=0),
-            forecast_window=config_float(cfg, "forecast_window", 5.0, lo=0),
-            forecast_horizons=self._horizons(),
-            replan_distance=config_float(cfg, "replan_distance", 25.0, lo=0),
-            heartbeat_interval=config_float(cfg, "heartbeat_interval", 5.0, lo=0.1),
-            status_interval=config_float(cfg, "status_interval", 2.0, lo=0.1),
-            fleet=fleet,
-            operating_area=self._operating_area(),
-        ))
+        v = self.settings = self.read_settings()
+        fleet = tuple(n.lower() for n in re.split(r"[\s:,]+", v["fleet"]) if n)
+        same = ("standoff", "coordinate_timeout", "arrival_timeout", "node_timeout", "capture_radius", "transit_speed",
+                "loop_speed", "min_replan_interval", "forecast_window", "replan_distance", "heartbeat_interval",
+                "status_interval")
+        self.coordinator = Coordinator(Settings(forecast_horizons=self._horizons(v["forecast_horizons"]), fleet=fleet,
+                                                operating_area=self._operating_area(), **{k: v[k] for k in same}))
         lat = self.mission.lat_origin if self.mission is not None else None
         lon = self.mission.long_origin if self.mission is not None else None
         self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
 
-    def _horizons(self) -> tuple[float, ...]:
-        text = config_str(self.config, "forecast_horizons", "3:7:11:15")
+    @staticmethod
+    def _horizons(text: str) -> tuple[float, ...]:
         try:
             horizons = tuple(float(h) for h in re.split(r"[\s:,]+", text) if h)
         except ValueError:
@@ -604,8 +494,7 @@ PUBLICATIONS:
 
     def _operating_area(self) -> Polygon | None:
         try:
-            return operating_area(config_str(self.config, "operating_area", ""),
-                                  config_float(self.config, "operating_radius", 0.0, lo=0))
+            return operating_area(self.settings["operating_area"], self.settings["operating_radius"])
         except BoundaryError as exc:
             raise ValueError(f"operating_area: {exc}") from None
 
@@ -616,8 +505,8 @@ PUBLICATIONS:
 
     async def run_async(self):
         """The boundary server shares the app's event loop; a port in use stops the app with its error."""
-        self.boundary_host = config_str(self.config, "boundary_host", "127.0.0.1")
-        self.boundary_port = int(config_float(self.config, "boundary_port", 9100, lo=0, hi=65535))
+        settings = self.read_settings()
+        self.boundary_host, self.boundary_port = settings["boundary_host"], settings["boundary_port"]
         self.lines_ok = self.lines_refused = 0
         server = await asyncio.start_server(self._serve, self.boundary_host, self.boundary_port, limit=MAX_LINE)
         self.boundary_port = server.sockets[0].getsockname()[1]

@@ -12,9 +12,9 @@ from pathlib import Path
 
 from moosdb_py.alog import AlogFormatError, iter_alog
 from moosdb_py.app import MOOSApp
+from moosdb_py.config import config_float, config_str, read_params, warn_unhandled
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
-from oilspill_moos.app_config import config_float, config_str, read_params, warn_unhandled
 from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
 from oilspill_moos.geodesy import LocalGrid, mission_grid
 from oilspill_moos.viewer.model import (

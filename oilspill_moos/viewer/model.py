@@ -16,8 +16,9 @@ import numpy as np
 import shapely
 
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
-from oilspill_moos.app_config import parse_float, parse_pairs
-from oilspill_moos.response.oil_fusion import parse_observation
+from moosdb_py.config import parse_float
+from moosdb_py.formats import parse_pairs
+from oilspill_moos.messages import parse_observation
 
 VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
 # Shoreside variables the map is drawn from; the *-suffixed ones are per vehicle (…_ABE).

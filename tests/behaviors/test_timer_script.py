@@ -125,6 +125,7 @@ def test_timer_script_app_on_the_mission_clock(moosdb_server, tmp_path):
             await watcher.wait_connected(5)
             await async_wait_until(lambda: any("conditions_ok=false" in s for s in values("UTS_STATUS")), timeout=5)
             assert values("EARLY") == []                       # the condition holds the clock
+            watcher.notify("UTS_PAUSE", "maybe")               # not a MOOS boolean: refused, the script runs on
             started = watcher.moos_time()
             watcher.notify("DEPLOY", "true")
             await async_wait_until(lambda: values("EARLY") == [1.0], timeout=5)

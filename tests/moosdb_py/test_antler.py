@@ -252,3 +252,17 @@ def test_an_app_with_a_bad_config_is_reported_with_its_error(tmp_path, free_port
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 1
+
+
+def test_entry_points_alone_say_which_apps_exist():
+    from importlib import metadata
+
+    from moosdb_py.antler import APP_GROUP, PROGRAM_GROUP, python_target
+    for group in (APP_GROUP, PROGRAM_GROUP):
+        for ep in metadata.entry_points(group=group):
+            assert python_target(ep.name) is not None, ep.name
+    assert python_target("uXMS") == "moosdb_py.xms:main" and python_target("pHelmIvP") == "behaviors.helm_app:HelmIvP"
+    # a console script that no group declares (a tool, not a MOOS program) is not launched as an app
+    assert python_target("nsplug") is None and python_target("moos-lint") is None
+    source = (Path(__file__).resolve().parents[2] / "moosdb_py" / "antler.py").read_text()
+    assert '"oilspill_moos"' not in source and '"behaviors"' not in source

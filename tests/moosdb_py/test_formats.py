@@ -64,7 +64,7 @@ def test_pairs_split_outside_braces_lower_case_keys_last_wins():
     assert parse_pairs("A=1, b = x ,,pts={1,2:3,4},a=2") == {"a": "2", "b": "x", "pts": "{1,2:3,4}"}
     assert parse_pairs("points=1,2:3,4#repeat=forever", sep="#") == {"points": "1,2:3,4", "repeat": "forever"}
     assert split_fields("a=1,pts={1,2},b=3") == ["a=1", "pts={1,2}", "b=3"]
-    with pytest.raises(FormatError, match="'oops' is not a key=value pair"):
+    with pytest.raises(FormatError, match="'oops' is not key=value"):
         parse_pairs("a=1,oops")
 
 

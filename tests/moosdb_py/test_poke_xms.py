@@ -8,7 +8,7 @@ import threading
 import pytest
 
 from moosdb_py.client import MOOSClient
-from moosdb_py.message import MOOSMsg
+from moosdb_py.message import SERVER_REQUEST_ID, MOOSMsg
 from moosdb_py.poke import Poke, parse_poke, poke_db
 from moosdb_py.poke import main as poke_main
 from moosdb_py.xms import Scope, format_table, history_line, value_text
@@ -178,21 +178,42 @@ def test_options_after_the_mission_file_and_pokes_on_the_dbs_clock(tmp_path):
         async def deploy_and_community_clock():
             watcher = MOOSClient("watcher", port=db.port, time_warp=10)   # on the community's clock
             watcher.register("DEPLOY")
+            watcher.register("DB_UPTIME")   # and until the DB has posted its uptime (uXMS's time origin)
             running = asyncio.create_task(watcher.run())
             try:
-                await async_wait_until(lambda: watcher.inbox, 10)
-                return watcher.inbox[0], watcher.moos_time()
+                await async_wait_until(lambda: {m.key for m in watcher.inbox} >= {"DEPLOY", "DB_UPTIME"}, 10)
+                return next(m for m in watcher.inbox if m.key == "DEPLOY"), watcher.moos_time()
             finally:
                 watcher.close()
                 await running
         deploy, now = asyncio.run(deploy_and_community_clock())
         # stamped with uPokeDB's own warp-1 clock it would be 9 x the epoch (~15e9 s) behind
         assert (deploy.string, deploy.source) == ("true", "uPokeDB") and abs(deploy.time - now) < 60
-        # uXMS on the same file counts (T)ime on the DB's clock too: the poke was a few warped seconds ago
-        shown = tool("xms", mission, "--port", db.port, "DEPLOY", "--once", "--show=time")
+        # uXMS on the same file counts (T)ime on the DB's clock too, from the DB's start as the C++ uXMS
+        # (issue 14: it counted from its own start, so the poke showed a negative time): a few warped
+        # seconds after the DB started, never negative
+        shown = tool("xms", mission, "--port", db.port, "DEPLOY", "DB_UPTIME", "--once", "--show=time")
         assert shown.returncode == 0, shown.stderr
-        age = float(shown.stdout.splitlines()[2].split()[1])
-        assert -120 < age <= 1, shown.stdout
+        rows = {line.split()[0]: line.split() for line in shown.stdout.splitlines()[2:]}
+        age, uptime = float(rows["DEPLOY"][1]), float(rows["DB_UPTIME"][2])
+        assert 0 <= age <= uptime + 1 and age < 120, shown.stdout
     finally:
         db.stop()
 
+
+
+def test_time_column_counts_from_the_db_start_as_the_cpp_uxms():
+    """C++ uXMS: (T)ime = message time - (DB time - DB_UPTIME) at the first DB_UPTIME, two decimals, so a
+    value written before uXMS started is not negative (issue 14 saw -0.61)."""
+    scope = Scope(["DEPLOY"], start=1000.0)              # uXMS's own start on the DB's clock, the fallback
+    reply = MOOSMsg.notification("DB_UPTIME", 3.0, time=3.0, source="MOOSDB_#1")
+    reply.id = SERVER_REQUEST_ID                         # the ALL answer stamps variables with their age
+    deploy = msg("DEPLOY", "true", "uPokeDB", time=999.39)
+    scope.note_db_start([reply, deploy])
+    scope.take([deploy])
+    assert not scope.db_started and format_table(scope, {"time"}).splitlines()[2].split()[1] == "-0.61"
+    scope.note_db_start([msg("DB_UPTIME", 12.5, "MOOSDB_#1", time=1002.5), deploy])
+    assert scope.db_started and scope.start == 990.0
+    assert format_table(scope, {"time"}).splitlines()[2].split()[1] == "9.39"
+    scope.note_db_start([msg("DB_UPTIME", 99.0, "MOOSDB_#1", time=1100.0)])   # the first one counts
+    assert scope.start == 990.0 and history_line(deploy, scope.start).split()[0] == "9.39"

@@ -12,10 +12,10 @@ from oilspill_moos.field.node_broker import (
     parse_bridge,
     parse_shore_route,
 )
+from oilspill_moos.field.bridges import parse_output_summary
 from oilspill_moos.field.shore_broker import (
     ShoreBrokerState,
     expand_source,
-    parse_output_summary,
     parse_vnode_route,
     shore_bridges,
 )

@@ -3,7 +3,8 @@ import asyncio
 
 from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
-from oilspill_moos.response.coordinates import Coordinates, coordinates_report
+from oilspill_moos.messages import coordinates_report
+from oilspill_moos.response.coordinates import Coordinates
 
 
 def write_mission(tmp_path, port, block=""):

@@ -113,7 +113,7 @@ def test_pause_and_blackout():
 
 
 def test_platform_report_gap_and_alias():
-    params = ReporterParams.from_config({}, ["BATTERY,gap=10,alias=BATT", "WIFI"])
+    params = ReporterParams.from_config({"plat_report_input": ["BATTERY,gap=10,alias=BATT", "WIFI"]})
     b = NodeReportBuilder("abe", params)
     assert b.platform_report(0.0) is None
     b.on_mail("BATTERY", 12.5, 0.0)
@@ -132,7 +132,7 @@ def test_platform_report_gap_and_alias():
                                               ({}, ["V,gap=x"], "plat_report_input gap")])
 def test_bad_config_names_the_parameter(cfg, plat, word):
     with pytest.raises(ValueError, match=word):
-        ReporterParams.from_config(cfg, plat)
+        ReporterParams.from_config({**cfg, "plat_report_input": plat})
 
 
 def test_summary_modes_and_plat_input_parse():
@@ -147,3 +147,16 @@ def test_format_number_round_trips_within_precision(value, decimals):
     text = format_number(value, decimals)
     assert abs(float(text) - value) <= 0.5 * 10 ** -decimals + 1e-9
     assert not (("." in text) and text.endswith("0")) and not text.endswith(".") and text != "-0"
+
+
+@pytest.mark.parametrize("word, paused", [("true", True), ("ON", True), ("1", True), ("false", False),
+                                          ("off", False), ("0", False), ("maybe", None)])
+def test_pause_and_reverse_mail_are_moos_booleans(word, paused):
+    """PNR_PAUSE and THRUST_MODE_REVERSE read booleans by the one rule (moosdb_py.formats); a word that is
+    no boolean leaves the setting alone, as the C++ app's setBooleanOnString does."""
+    for before in (False, True):
+        b = NodeReportBuilder("a", ReporterParams.from_config({"paused": str(before).lower()}))
+        b.thrust_mode_reverse = before
+        fed(b, 1.0, PNR_PAUSE=word, THRUST_MODE_REVERSE=word)
+        expected = before if paused is None else paused
+        assert (b.paused, b.thrust_mode_reverse) == (expected, expected)

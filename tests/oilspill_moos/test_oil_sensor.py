@@ -5,8 +5,9 @@ from shapely.geometry import Point, box
 
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.response.oil_fusion import ScenarioMap
-from oilspill_moos.response.oil_sensor import OilSensor, SensorModel, TruthSpill, parse_request
+from oilspill_moos.messages import parse_request
+from oilspill_moos.response.oil_sensor import OilSensor, SensorModel, TruthSpill
+from oilspill_moos.response.scenario_map import ScenarioMap
 
 SLICK = box(0, 0, 100, 100)
 N = 4000

@@ -8,20 +8,16 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.response.planner import containment_region
-from oilspill_moos.response.path_assign import (
-    OIL_PATH,
-    STARTING_POSITION,
-    STATION_KEEPING,
+from oilspill_moos.messages import (
     Boundary,
     BoundaryError,
-    Coordinator,
-    Settings,
     format_points,
     operating_area,
     parse_boundary_line,
     parse_polygon_spec,
 )
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING, Coordinator, Settings
+from oilspill_moos.response.planner import containment_region
 
 SQUARE = [(0.0, 0.0), (400.0, 0.0), (400.0, 400.0), (0.0, 400.0)]
 

@@ -10,6 +10,7 @@ import pytest
 
 from helpers import async_wait_until
 from moosdb_py.client import MOOSClient
+from moosdb_py.message import MOOSMsg
 from moosdb_py.mission import read_mission
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.marine.marine_pid import MarinePID, PIDParams
@@ -212,7 +213,7 @@ def test_real_mission_blocks_are_accepted(name):
     mission = read_mission(CORPUS / name)
     readers = {"usimmarine": SimParams.from_config, "usimmarinev22": SimParams.from_config,
                "pmarinepid": PIDParams.from_config, "pmarinepidv22": PIDParams.from_config,
-               "pnodereporter": lambda cfg: ReporterParams.from_config(cfg, cfg.get_all("plat_report_input"))}
+               "pnodereporter": ReporterParams.from_config}
     blocks = [b for b in mission.blocks if b.name.lower() in readers]
     assert len(blocks) == 3
     for block in blocks:
@@ -233,3 +234,16 @@ def test_unhandled_parameters_are_warned_with_their_line(tmp_path, free_port, ca
     assert "vehicle.moos:17: unhandled parameter 'sim_instability'" in caplog.text
     assert "vehicle.moos:23: unhandled parameter 'rider'" in caplog.text
     assert "prefix" not in caplog.text and "AppTick" not in caplog.text and "vessel_type" not in caplog.text
+
+
+def test_manual_override_mail_is_a_moos_boolean(tmp_path, free_port):
+    """MOOS_MANUAL_OVERRIDE by the one boolean rule: FALSE, off or 0 hand control over; TRUE, on or 1 take it
+    back; any other word changes nothing."""
+    pid = MarinePID(write_mission(tmp_path, free_port()), "pMarinePIDV22")
+    pid.on_startup()
+    now = pid.moos_time()
+    states = []
+    for word in ("FALSE", "garbage", "on", "0", "maybe", "1"):
+        pid.on_new_mail([MOOSMsg.notification("MOOS_MANUAL_OVERRIDE", word, time=now)])
+        states.append(pid.overridden)
+    assert states == [False, False, True, False, False, True]
