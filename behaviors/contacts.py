@@ -1,5 +1,6 @@
-"""Contacts as contact behaviours see them: the helm's ledger of other vehicles' NODE_REPORTs,
-the contact's extrapolated position, and closest point of approach (CPA) over a course x speed grid.
+"""Contacts as contact behaviours and contact apps see them: NODE_REPORTs read into records, the
+helm's ledger of them, the contact's extrapolated position, and the closest point of approach (CPA),
+over a course x speed grid for the helm or for one course for pContactMgrV20 and uFldCollisionDetect.
 
 The helm turns each `NODE_REPORT` into info-buffer values named after the vehicle, upper-cased
 (`HENRY_NAV_X`, `_NAV_Y`, `_NAV_SPEED`, `_NAV_HEADING`, `_NAV_DEPTH`, `_NAV_UTC`, `_NAV_GROUP`,
@@ -8,10 +9,11 @@ The helm turns each `NODE_REPORT` into info-buffer values named after the vehicl
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from moosdb_py.formats import FormatError, parse_pairs
+from moosdb_py.formats import FormatError, parse_number, parse_pairs
 
 from .logic import as_number
 
@@ -21,6 +23,74 @@ NUMERIC_FIELDS = {"x": "NAV_X", "y": "NAV_Y", "spd": "NAV_SPEED", "hdg": "NAV_HE
 TIME_FIELDS = ("time", "utc_time", "moos_time")
 TEXT_FIELDS = {"group": "NAV_GROUP", "type": "NAV_TYPE"}
 REQUIRED = ("NAV_X", "NAV_Y", "NAV_SPEED", "NAV_HEADING", "NAV_UTC")
+
+
+class NodeRecordError(ValueError):
+    """A node report (or node message) that cannot be used; the message quotes it."""
+
+
+def _number(fields: dict[str, str], key: str, text: str, default: float | None = None) -> float | None:
+    raw = fields.get(key)
+    if raw is None or raw == "":
+        return default
+    try:
+        return parse_number(raw)
+    except FormatError as exc:
+        raise NodeRecordError(f"{key.upper()}: {exc} in {text!r}") from None
+
+
+@dataclass(frozen=True)
+class NodeRecord:
+    """One vehicle's NODE_REPORT (`NAME=..,X=..,Y=..,SPD=..,HDG=..`, keys in any case, LONG for LON,
+    DEPTH for DEP): position (local x/y), motion, identity, and every field as received."""
+
+    name: str
+    x: float
+    y: float
+    speed: float = 0.0
+    heading: float = 0.0
+    depth: float = 0.0
+    time: float | None = None
+    group: str = ""
+    type: str = ""
+    length: float = 0.0
+    fields: tuple[tuple[str, str], ...] = ()   # every key=value as received (keys lower-cased)
+    text: str = ""
+
+    @classmethod
+    def parse(cls, text: str, grid=None) -> "NodeRecord":
+        """Read a report; one with only LAT/LON is placed with `grid` (the mission's LocalGrid)."""
+        try:
+            fields = parse_pairs(text)
+        except FormatError as exc:
+            raise NodeRecordError(f"NODE_REPORT {text!r}: {exc}") from None
+        name = fields.get("name", "")
+        if not name:
+            raise NodeRecordError(f"NODE_REPORT without NAME: {text!r}")
+        if "lon" not in fields and "long" in fields:
+            fields["lon"] = fields["long"]
+        x, y = _number(fields, "x", text), _number(fields, "y", text)
+        if x is None or y is None:
+            lat, lon = _number(fields, "lat", text), _number(fields, "lon", text)
+            if grid is None or lat is None or lon is None:
+                raise NodeRecordError(f"NODE_REPORT without X/Y (or LAT/LON and a LatOrigin): {text!r}")
+            x, y = grid.to_local(lat, lon)
+        depth = _number(fields, "dep", text, None)
+        stamps = (_number(fields, key, text, None) for key in TIME_FIELDS)
+        return cls(name=name, x=float(x), y=float(y), speed=_number(fields, "spd", text, 0.0),
+                   heading=_number(fields, "hdg", text, 0.0) % 360.0,
+                   depth=depth if depth is not None else _number(fields, "depth", text, 0.0),
+                   time=next((stamp for stamp in stamps if stamp is not None), None),
+                   group=fields.get("group", ""), type=fields.get("type", ""),
+                   length=_number(fields, "length", text, 0.0), fields=tuple(fields.items()), text=text)
+
+    def field(self, key: str, default: str = "") -> str:
+        """The value of a report key as it was written (`x`, `spd`, `lat`, ...)."""
+        return dict(self.fields).get(key, default)
+
+    def dead_reckoned(self, elapsed: float, decay_start: float, decay_end: float) -> tuple[float, float]:
+        """Where the vehicle is `elapsed` s after the report, holding its course (see `extrapolate`)."""
+        return extrapolate(self.x, self.y, self.speed, self.heading, elapsed, decay_start, decay_end)
 
 
 def node_report_values(report: str) -> dict[str, float | str] | None:
@@ -113,3 +183,15 @@ def closing_speed(osx: float, osy: float, osh: float, osv: float, cnx: float, cn
     ovx, ovy = velocity(osh, osv)
     cvx, cvy = velocity(cnh, cnv)
     return float(-(rx * (ovx - cvx) + ry * (ovy - cvy)) / rng)
+
+
+def cpa_range(osx: float, osy: float, osh: float, osv: float,
+              cnx: float, cny: float, cnh: float, cnv: float, horizon: float) -> float:
+    """Closest distance between ownship and contact over the next `horizon` s, both holding course and speed."""
+    return float(cpa_distance(osx, osy, osh, osv, cnx, cny, cnh, cnv, horizon))
+
+
+def relative_bearing(osx: float, osy: float, osh: float, cnx: float, cny: float) -> float:
+    """Bearing of the contact from ownship's bow, degrees in [0, 360)."""
+    absolute = math.degrees(math.atan2(cnx - osx, cny - osy))
+    return (absolute - osh) % 360.0

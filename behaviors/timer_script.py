@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 from behaviors.logic import ConditionError, as_number, condition_variables, parse_condition
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import FormatError, parse_bool
+from moosdb_py.formats import FormatError, parse_bool, parse_pairs
 from moosdb_py.message import MOOSMsg
 
 log = logging.getLogger("uTimerScript")
@@ -27,19 +27,12 @@ RANDVAR_KEYS = ("at_start", "at_reset", "at_post")
 RESET_AT_END = ("all-posted", "end")
 
 
-def split_fields(text: str) -> list[str]:
-    """Split at commas that are not inside double quotes."""
-    return [part.strip() for part in re.findall(r'(?:[^,"]|"[^"]*")+', text) if part.strip()]
-
-
 def fields_of(text: str, where: str) -> dict[str, str]:
-    pairs: dict[str, str] = {}
-    for part in split_fields(text):
-        key, sep, value = part.partition("=")
-        if not sep:
-            raise ValueError(f"{where}: {part!r} is not a key=value pair")
-        pairs[key.strip().lower()] = value.strip()
-    return pairs
+    """A `key=value` line whose quoted values keep their commas (and their quotes: `val="x"` is a string)."""
+    try:
+        return parse_pairs(text)
+    except FormatError as exc:
+        raise ValueError(f"{where}: {exc}") from None
 
 
 def parse_range(text: str, where: str) -> tuple[float, float]:

@@ -95,22 +95,47 @@ def format_bool(value: bool) -> str:
 
 
 def split_fields(text: str, sep: str = ",") -> list[str]:
-    """`text` split at `sep` outside braces: `a=1,pts={1,2:3,4}` -> ['a=1', 'pts={1,2:3,4}']."""
-    fields, depth, start = [], 0, 0
+    """`text` split at `sep` outside braces and double quotes (MOOS's parseStringQ), quotes kept:
+    `a=1,pts={1,2:3,4},s="x,y"` -> ['a=1', 'pts={1,2:3,4}', 's="x,y"']; an unclosed quote is an error."""
+    fields, depth, quoted, start = [], 0, False, 0
     for i, char in enumerate(text):
-        if char == "{":
+        if char == '"':
+            quoted = not quoted
+        elif quoted:
+            continue
+        elif char == "{":
             depth += 1
         elif char == "}":
             depth = max(depth - 1, 0)
         elif char == sep and depth == 0:
             fields.append(text[start:i])
             start = i + 1
+    if quoted:
+        raise FormatError(f"unclosed double quote in {text!r}")
     fields.append(text[start:])
     return fields
 
 
-def parse_pairs(text: str, sep: str = ",") -> dict[str, str]:
-    """`a=1, B = x,pts={1,2:3,4}` -> {'a': '1', 'b': 'x', 'pts': '{1,2:3,4}'}."""
+def unquote(value: str) -> str:
+    """A value without the double quotes around it (`"a, b"` -> `a, b`), as a quoted field means it."""
+    value = value.strip()
+    return value[1:-1] if len(value) >= 2 and value[0] == value[-1] == '"' else value
+
+
+def split_quoted(text: str, sep: str = ",") -> list[str]:
+    """The non-empty fields of `text`, stripped, each value without its surrounding double quotes
+    (`a=1, b="x,y"` -> ['a=1', 'b=x,y']): how NODE_MESSAGE and contact-manager alert lines are read."""
+    parts = []
+    for item in split_fields(str(text), sep):
+        key, eq, value = item.partition("=")
+        if item.strip():
+            parts.append(f"{key.strip()}={unquote(value)}" if eq else unquote(item))
+    return parts
+
+
+def parse_pairs(text: str, sep: str = ",", unquoted: bool = False) -> dict[str, str]:
+    """`a=1, B = x,pts={1,2:3,4}` -> {'a': '1', 'b': 'x', 'pts': '{1,2:3,4}'}; with `unquoted`, values
+    lose their surrounding double quotes (`s="x,y"` -> 'x,y')."""
     pairs: dict[str, str] = {}
     for item in split_fields(str(text), sep):
         if not item.strip():
@@ -118,7 +143,7 @@ def parse_pairs(text: str, sep: str = ",") -> dict[str, str]:
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise FormatError(f"{item.strip()!r} is not key=value")
-        pairs[key.strip().lower()] = value.strip()
+        pairs[key.strip().lower()] = unquote(value) if unquoted else value.strip()
     return pairs
 
 

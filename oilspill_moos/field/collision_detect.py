@@ -18,7 +18,7 @@ from moosdb_py.formats import format_number
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
-from oilspill_moos.node_record import NodeRecord, NodeRecordError
+from behaviors.contacts import NodeRecord, NodeRecordError
 
 log = logging.getLogger(__name__)
 

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
-from oilspill_moos.node_record import NodeMessage, NodeRecordError
+from behaviors.contacts import NodeRecordError
+from oilspill_moos.node_message import NodeMessage
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,8 @@ from moosdb_py.formats import parse_pairs
 from moosdb_py.config import ConfigValueError, Param, Params, config_float, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
-from oilspill_moos.node_record import NodeMessage, NodeRecord, NodeRecordError
+from behaviors.contacts import NodeRecord, NodeRecordError
+from oilspill_moos.node_message import NodeMessage
 
 
 Post = tuple[str, str | float]

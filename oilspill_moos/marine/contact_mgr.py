@@ -19,12 +19,11 @@ import shapely
 
 from behaviors.flags import FlagError, FlagSpec, expand_macros, parse_flag
 from behaviors.geometry import GeometryError, parse_polygon
-from moosdb_py.formats import FormatError, format_number, is_number, parse_bool
+from moosdb_py.formats import FormatError, format_number, is_number, parse_bool, parse_pairs, split_quoted
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from oilspill_moos.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
-from oilspill_moos.node_record import (
-    NodeRecord, NodeRecordError, cpa_range, quoted_pairs, relative_bearing, split_quoted)
+from behaviors.contacts import NodeRecord, NodeRecordError, cpa_range, relative_bearing
 
 log = logging.getLogger(__name__)
 
@@ -313,7 +312,7 @@ class ContactManager:
             if source:
                 alert.source = source
             alert.configure(parts)
-        except (NodeRecordError, AlertError) as exc:
+        except (NodeRecordError, AlertError, FormatError) as exc:
             raise AlertError(f"alert {text!r}: {exc}", text) from None
         return alert
 
@@ -349,7 +348,7 @@ class ContactManager:
             self.retired.remove(record.name)
 
     def on_report_request(self, text: str, now: float) -> None:
-        fields = quoted_pairs(text)
+        fields = parse_pairs(text, unquoted=True)
         var, rng = fields.get("var", ""), fields.get("range", "")
         rng = float(rng) if is_number(rng) else None
         unknown = set(fields) - {"var", "range", "group", "type", "refresh", "reason"}

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from behaviors.contacts import NodeRecord, NodeRecordError
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
 from moosdb_py.config import parse_float
 from moosdb_py.formats import parse_pairs
@@ -54,38 +55,16 @@ class NodeReport:
         return self.mode.rpartition("@")[2].rpartition(":")[2] or self.mode
 
 
-def _finite(fields: dict[str, str], key: str, text: str, default: float | None = None) -> float:
-    raw = fields.get(key)
-    if raw is None:
-        if default is None:
-            raise ViewError(f"NODE_REPORT without {key.upper()}: {text!r}")
-        return default
-    try:
-        return parse_float(raw, f"NODE_REPORT {key.upper()}")
-    except ValueError as exc:
-        raise ViewError(f"{exc}: {text!r}") from None
-
-
 def parse_node_report(text: str, grid=None) -> NodeReport:
     """A NODE_REPORT (keys in any case, LONG as well as LON); a report with only LAT/LON is placed
     with `grid` (the mission's LocalGrid), as with `coord_policy_global`."""
     try:
-        fields = parse_pairs(text)
-    except ValueError as exc:
-        raise ViewError(f"NODE_REPORT {text!r}: {exc}") from None
-    name = fields.get("name", "")
-    if not name:
-        raise ViewError(f"NODE_REPORT without NAME: {text!r}")
-    if "lon" not in fields and "long" in fields:
-        fields["lon"] = fields["long"]
-    if ("x" not in fields or "y" not in fields) and grid is not None and "lat" in fields and "lon" in fields:
-        x, y = grid.to_local(_finite(fields, "lat", text), _finite(fields, "lon", text))
-        fields["x"], fields["y"] = str(float(x)), str(float(y))
-    time = _finite(fields, "time", text, default=math.nan)
-    return NodeReport(name=name, x=_finite(fields, "x", text), y=_finite(fields, "y", text),
-                      heading=_finite(fields, "hdg", text, 0.0) % 360.0, speed=_finite(fields, "spd", text, 0.0),
-                      mode=fields.get("mode", ""), type=fields.get("type", ""), color=fields.get("color", ""),
-                      length=_finite(fields, "length", text, 0.0), time=None if math.isnan(time) else time)
+        record = NodeRecord.parse(text, grid)
+    except NodeRecordError as exc:
+        raise ViewError(str(exc)) from None
+    return NodeReport(name=record.name, x=record.x, y=record.y, heading=record.heading, speed=record.speed,
+                      mode=record.field("mode"), type=record.type, color=record.field("color"),
+                      length=record.length, time=record.time)
 
 
 def _properties(text: str) -> dict[str, str]:

@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from behaviors.logic import parse_condition
-from behaviors.timer_script import Event, RandVar, TimerScript, TimerScriptState, split_fields
+from behaviors.timer_script import Event, RandVar, TimerScript, TimerScriptState
+from moosdb_py.formats import split_fields
 from moosdb_py.antler import expanded_mission
 from moosdb_py.client import MOOSClient
 
@@ -37,7 +38,7 @@ def test_event_lines():
 @given(st.lists(st.text(alphabet='ab=" ', min_size=1, max_size=6), min_size=1, max_size=4))
 def test_split_fields_keeps_quoted_commas(parts):
     quoted = [f'"{p.replace(chr(34), "")},x"' for p in parts]
-    assert split_fields(",".join(quoted)) == [q.strip() for q in quoted if q.strip()]
+    assert [f.strip() for f in split_fields(",".join(quoted))] == [q.strip() for q in quoted if q.strip()]
 
 
 def test_events_post_in_time_order_with_types_and_macros():

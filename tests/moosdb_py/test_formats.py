@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from moosdb_py.formats import (FormatError, format_bool, format_fixed, format_number, format_pairs,
                                format_points, format_seglist, parse_bool, parse_number, parse_pairs,
-                               parse_seglist, split_fields, wild_match)
+                               parse_seglist, split_fields, split_quoted, wild_match)
 
 finite = st.floats(allow_nan=False, allow_infinity=False, min_value=-1e9, max_value=1e9)
 
@@ -139,3 +139,13 @@ def test_wild_match_is_mooswildcmp(pattern, text, hit):
 def test_wild_match_agrees_with_fnmatch_on_star_and_question(pattern, text):
     import fnmatch
     assert wild_match(pattern, text) == fnmatch.fnmatchcase(text, pattern)
+
+
+def test_quoted_fields_keep_their_commas():
+    """MOOS's parseStringQ: commas inside double quotes do not split; `unquoted` drops the quotes."""
+    assert split_fields('a=1,s="x,y",b=2') == ["a=1", 's="x,y"', "b=2"]
+    assert parse_pairs('var=X, string_val="a, b=c"', unquoted=True) == {"var": "X", "string_val": "a, b=c"}
+    assert split_quoted('id=avd, val="name=$[VNAME] # contact=$[VNAME]", ') == \
+        ["id=avd", "val=name=$[VNAME] # contact=$[VNAME]"]
+    with pytest.raises(FormatError, match="unclosed double quote"):
+        split_fields('a="open,b=2')

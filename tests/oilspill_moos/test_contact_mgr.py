@@ -10,7 +10,7 @@ from hypothesis import given, strategies as st
 from moosdb_py.source import MissionFileError
 from oilspill_moos.marine.contact_mgr import (
     Alert, AlertError, BasicContactMgr, ContactManager, ContactMgr, ContactMgrParams)
-from oilspill_moos.node_record import NodeRecord, cpa_range
+from behaviors.contacts import NodeRecord, cpa_range
 
 AVOID_REQUEST = 'id=avd, var=CONTACT_INFO, val="name=avd_$[VNAME] # contact=$[VNAME]", alert_range=80, cpa_range=100'
 
@@ -86,7 +86,7 @@ def test_node_report_reading():
         "ben", 1.5, -2.0, 10.0, 3.0, "blue", 12.5)
     with pytest.raises(ValueError, match="without X/Y"):
         NodeRecord.parse("NAME=ben,LAT=43.8,LON=-70.3")   # no grid to place it
-    with pytest.raises(ValueError, match="not a number"):
+    with pytest.raises(ValueError, match="X: expected a number, got .ten."):
         NodeRecord.parse("NAME=ben,X=ten,Y=0")
 
 

@@ -11,7 +11,7 @@ from helpers import async_wait_until, start_moosdb
 
 from moosdb_py.client import MOOSClient
 from oilspill_moos.field.message_handler import Delivery, MessageHandler, MessageInbox
-from oilspill_moos.node_record import NodeMessage
+from oilspill_moos.node_message import NodeMessage
 
 
 @pytest.mark.parametrize("text, delivery", [
@@ -48,7 +48,7 @@ def test_strict_addressing_and_the_summary():
                  "garbage"):
         inbox.receive(text)
     assert inbox.summary() == "total=4,valid=3,rejected=2"
-    assert inbox.problem == "'garbage' is not a key=value pair in 'garbage'"
+    assert inbox.problem == "NODE_MESSAGE 'garbage': 'garbage' is not key=value"
 
 
 def test_the_app_posts_the_message_variable(tmp_path):
