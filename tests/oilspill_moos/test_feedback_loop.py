@@ -8,6 +8,7 @@ forecast and writes them for the forecaster; the forecaster re-anchors on them, 
 corrected outline must fit the truth better than the forecast the fleet was sent around.
 Fixed scenario and sensor seed.
 """
+import asyncio
 import json
 
 import pytest
