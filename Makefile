@@ -18,8 +18,9 @@ $(STAMP): pyproject.toml
 # The venv's console scripts (moosdb, pAntler, ...) must be on PATH for tests that launch them.
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
+# -rs: the summary names each skipped test and why (e.g. needs ../shared/missions-corpus).
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -rs
 
 demo: $(STAMP)
 	$(PY) -m oilspill_moos.demo $(DEMO_ARGS)

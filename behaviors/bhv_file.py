@@ -227,10 +227,9 @@ class _Parser:
             if state == "misc-defining":
                 self.state = "misc-defined-ish"
             elif state == "bhv-defining":
-                _check_general(self.bhv)
-                self.result.behaviors.append(self.bhv)
-                self.bhv = None
-                self.state = "top"
+                spec, self.bhv, self.state = self.bhv, None, "top"
+                self.result.behaviors.append(spec)
+                _check_general(spec)      # after closing the block: a caller collecting errors reads on
             elif state == "set-defining":
                 self.state = "set-defined-ish"
             else:
@@ -314,16 +313,32 @@ class _Parser:
         return self.result
 
 
-def parse_bhv(lines: list[SourceLine], path: Path | str | None = None) -> BhvFile:
-    """Parse preprocessed `.bhv` lines (e.g. nsplug output) into a BhvFile."""
+def parse_bhv(lines: list[SourceLine], path: Path | str | None = None,
+              errors: list[MissionFileError] | None = None) -> BhvFile:
+    """Parse preprocessed `.bhv` lines (e.g. nsplug output) into a BhvFile.
+
+    The helm stops at the first bad line. Given `errors` (moos-lint), each bad line is recorded there
+    and skipped instead, so one pass names them all; the BhvFile then holds what did parse.
+    """
     path = Path(path) if path is not None else (lines[0].file if lines else Path("<bhv>"))
     parser = _Parser(path)
     last = None
     for src in _logical_lines(lines):
         for piece in _pieces(src):
-            parser.feed(piece)
+            try:
+                parser.feed(piece)
+            except MissionFileError as exc:
+                if errors is None:
+                    raise
+                errors.append(exc)
             last = piece
-    return parser.finish(last)
+    try:
+        return parser.finish(last)
+    except MissionFileError as exc:
+        if errors is None:
+            raise
+        errors.append(exc)
+        return parser.result
 
 
 def read_bhv(path: Path | str) -> BhvFile:

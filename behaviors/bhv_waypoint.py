@@ -88,6 +88,7 @@ class BHV_Waypoint(IvPBehavior):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.points = np.zeros((0, 2))
+        self._seglist: tuple[bytes, str] = (b"", "")   # the points' bytes and their pts={...} text, built once
         self.reversed = False
         self.ix = 0
         self.cpa: float | None = None
@@ -429,7 +430,7 @@ class BHV_Waypoint(IvPBehavior):
         if len(self.points):
             for label in ("nextpt", "trackpt"):
                 self.post_point(label, *self.points[self.ix], active=False)
-        self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name},active=false")
+        self.post("VIEW_SEGLIST", f"{self._points_text()},label={self.ownship}_{self.name},active=false")
         if self.reset_on_idle:
             self.set_points(self.points)
 
@@ -491,10 +492,17 @@ class BHV_Waypoint(IvPBehavior):
             self.post(self.dist_next_var, round(dist, 2))
         if self.dist_prev_var:
             self.post(self.dist_prev_var, round(float(distance(osx, osy, *self.prev)), 2))
-        self.post("VIEW_SEGLIST", f"{format_seglist(self.points)},label={self.ownship}_{self.name}" + hint_fields(
+        self.post("VIEW_SEGLIST", f"{self._points_text()},label={self.ownship}_{self.name}" + hint_fields(
             self.hints, "vertex_color", "edge_color", "label_color", "edge_size", "vertex_size"))
         self.post_point("nextpt", nx, ny, active=True)
         return self.objective(osx, osy, heading)
+
+    def _points_text(self) -> str:
+        """format_seglist of the points, rebuilt only when they change (it is posted every iteration)."""
+        key = self.points.tobytes()
+        if self._seglist[0] != key or not self._seglist[1]:
+            self._seglist = (key, format_seglist(self.points))
+        return self._seglist[1]
 
     def on_update_applied(self) -> None:
         self.post("BHV_SETTINGS", f"type={self.type_name},name={self.name},points={format_seglist(self.points)},"

@@ -1,6 +1,8 @@
 """The IvP decision domain: named variables on uniform grids (`domain = name:low:high:npts`)."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from pydantic import BaseModel, model_validator
 
@@ -24,13 +26,21 @@ class DomainVar(BaseModel):
 
     @property
     def values(self) -> np.ndarray:
-        return self.low + np.arange(self.npts) * self.delta
+        """The grid points, built once per grid (every ZAIC and the solver read them each helm iteration); read-only."""
+        return _grid(self.low, self.delta, self.npts)
 
     def index_of(self, value: float) -> int:
         """The grid index nearest a value, clipped to the domain."""
         if self.npts == 1:
             return 0
         return int(np.clip(round((value - self.low) / self.delta), 0, self.npts - 1))
+
+
+@functools.lru_cache(maxsize=256)
+def _grid(low: float, delta: float, npts: int) -> np.ndarray:
+    grid = low + np.arange(npts) * delta
+    grid.setflags(write=False)
+    return grid
 
 
 class IvPDomain(BaseModel):

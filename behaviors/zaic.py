@@ -47,12 +47,15 @@ def _peak(var: DomainVar, c: PeakComponent, value_wrap: bool) -> np.ndarray:
 def zaic_peak(var: DomainVar, components: list[PeakComponent], value_wrap: bool = False,
               max_mode: bool = True) -> np.ndarray:
     """Peaks combined by max (default) or summed, then "summit insist" for peaks between grid points."""
-    parts = [_peak(var, c, value_wrap) for c in components]
-    u = np.max(parts, axis=0) if max_mode else np.sum(parts, axis=0)
+    u = _peak(var, components[0], value_wrap)
+    for c in components[1:]:      # pairwise, as np.max / np.sum over the stacked parts, without the stack
+        u = np.maximum(u, _peak(var, c, value_wrap)) if max_mode else u + _peak(var, c, value_wrap)
+    low, high = u.min(), u.max()
     for c in components:
-        if np.all(u == c.minutil):
+        if low == high == c.minutil:
             u = u.copy()
             u[var.index_of(c.summit)] = c.maxutil
+            low, high = u.min(), u.max()
     return u
 
 

@@ -1,6 +1,7 @@
 """Containment figures: planner run time, and boundary push -> every vehicle on its loop.
 
     python benchmarks/containment_bench.py [--sizes 3,10,30] [--warp W] [--planner-only]
+    python benchmarks/containment_bench.py --response [--vehicles 8] [--warp 30] [--cycles 3]
 
 For each fleet size the whole stack runs (missions/oilspill, one pAntler per
 community in --one-process mode) with the vehicles on a start line south of a
@@ -8,6 +9,12 @@ shipped spill outline. The time from the boundary push to pPathAssign's OIL-PATH
 (every vehicle arrived) is set against the lower bound: the longest straight-line
 distance from a vehicle to its assigned point divided by the transit speed, plus
 nothing for station-keeping and coordination. Times are mission (MOOS) seconds.
+
+--response runs the default demo's real-scale response instead (oilspill_moos/response_demo.py: a
+truth spill, the forecaster every cycle, each vessel on its own arc) and prints, per cycle, the time
+from the push until every arc is manned against the physical bound (longest route / top speed x 1.3)
+and the share of the true perimeter covered, with the wall time and the NODE_REPORT rate that shows
+whether the communities kept up with the warp.
 """
 from __future__ import annotations
 
@@ -33,8 +40,9 @@ from oilspill_moos.oilspill_mission import (
 )
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, parse_boundary_line
-from oilspill_moos.response.planner import containment_region, plan_containment
+from oilspill_moos.messages import parse_boundary_line
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION
+from oilspill_moos.response.planner import containment_region, plan_arcs, plan_containment
 
 TRANSIT_SPEED = 2.5  # the mission's default TRANSIT_SPEED, m/s
 
@@ -50,13 +58,14 @@ def planner_figures(sizes: list[int]) -> None:
     print(f"planner: stand-off loop {region.exterior.length:.0f} m, {len(region.exterior.coords) - 1} vertices")
     for n in sizes:
         positions = start_line(n)
-        runs = []
-        for _ in range(5):
-            t0 = time.perf_counter()
-            plan = plan_containment(region, positions)
-            runs.append(time.perf_counter() - t0)
-        print(f"  N={n:3d}: plan_containment {1000 * statistics.median(runs):7.1f} ms (median of 5), "
-              f"longest transit {plan.bottleneck:6.1f} m")
+        for planner in (plan_containment, plan_arcs):
+            runs = []
+            for _ in range(5):
+                t0 = time.perf_counter()
+                plan = planner(region, positions)
+                runs.append(time.perf_counter() - t0)
+            print(f"  N={n:3d}: {planner.__name__:16s} {1000 * statistics.median(runs):7.1f} ms (median of 5), "
+                  f"longest transit {plan.bottleneck:6.1f} m")
 
 
 async def stack_figure(n: int, warp: float, timeout: float) -> None:
@@ -92,6 +101,22 @@ async def stack_figure(n: int, warp: float, timeout: float) -> None:
               f"time warp {warp:g}, fleet online after {online:5.1f} s wall")
 
 
+def response_figures(vehicles: int, warp: float, cycles: int, timeout: float) -> int:
+    from oilspill_moos.response_demo import run_response, summary_lines
+
+    with tempfile.TemporaryDirectory(prefix="response_bench_") as folder:
+        record = asyncio.run(run_response(Path(folder), vehicles, warp, cycles, 2.0, timeout))
+    print(f"response at real scale ({record['scenario']}, {vehicles} vessels, warp {warp:g}):")
+    for c in record["cycles"]:
+        print(f"  cycle {c['cycle']}: push -> every arc manned {c['push_to_manned_s']:7.1f} s, bound "
+              f"{c['bound_s']:7.1f} s (longest route {c['longest_route_m'] / 1000:.1f} km), ratio "
+              f"{c['push_to_manned_s'] / c['bound_s']:.2f}; perimeter coverage {100 * (c['coverage_mean'] or 0):.0f} %")
+    for line in summary_lines(record)[-1:]:
+        print("  " + line)
+    print(f"  wall time {record['wall_s']:.0f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="3,10,30", help="fleet sizes (default 3,10,30)")
@@ -100,7 +125,12 @@ def main(argv=None) -> int:
                              "so that 2 cores keep up)")
     parser.add_argument("--timeout", type=float, default=600.0, help="wall seconds allowed per step")
     parser.add_argument("--planner-only", action="store_true", help="skip the full-stack runs")
+    parser.add_argument("--response", action="store_true", help="the real-scale response run instead")
+    parser.add_argument("--vehicles", type=int, default=8, help="--response: fleet size (default 8)")
+    parser.add_argument("--cycles", type=int, default=3, help="--response: forecast cycles (default 3)")
     args = parser.parse_args(argv)
+    if args.response:
+        return response_figures(args.vehicles, args.warp or 30.0, args.cycles, args.timeout)
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
     planner_figures(sizes)
     if not args.planner_only:

@@ -1,81 +1,194 @@
-"""Cost of the simulated vehicle's per-iteration work, and how many vehicles one core could carry.
+"""CPU a vehicle community costs per simulated second, and the largest fleet that keeps its AppTicks.
 
-    python benchmarks/vehicle_bench.py [--iterations N]
+    python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one]
 
-Times the pure parts each app runs every AppTick: uSimMarine's model step plus its
-lat/lon conversion, pMarinePID's control law, pNodeReporter's report string, and the
-vectorised LocalGrid on 100 000 points. From the per-iteration costs and s1_alpha's
-AppTicks (sim 4, PID 10, reporter 2; nav posted every second sim iteration) it prints
-the CPU a vehicle needs per warped second, excluding MOOS messaging.
+Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
+pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process
+--host-db` (one process per vessel, apps and DB talking in-process; `--sockets`: the MOOSDB as
+pAntler's child and the apps on loopback TCP) and deployed at once. Over a window of wall time while the
+vessels drive their survey, it sums the CPU seconds (utime + stime from /proc, so a loaded
+machine does not inflate the figure) of every pAntler and its children, divided by the
+simulated seconds (window x warp) and by the vessel count. An app fell behind when its
+`<NAME>_STATUS` shows it missed more than 2% of the AppTicks due in the window (MOOSApp counts in
+`TicksMissed` the AppTick periods that passed with no iteration). `--one` measures one vessel at warp 10 only (the quick before/after).
 """
 from __future__ import annotations
 
 import argparse
+import asyncio
+import contextlib
+import os
+import re
+import shutil
+import signal
+import socket
+import sys
+import tempfile
 import time
+from pathlib import Path
 
-import numpy as np
+from moosdb_py.client import MOOSClient
 
-from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.marine.marine_pid import PIDEngine, PIDParams
-from oilspill_moos.marine.node_reporter import NodeReportBuilder, ReporterParams
-from oilspill_moos.marine.sim_marine import MarineModel, SimParams
-
-ALPHA_SIM = {"start_pos": "0,-20,180,0", "prefix": "NAV", "turn_rate": "95",
-             "thrust_map": "0:0, 20:1, 40:2, 60:3, 80:4, 100:5", "turn_spd_loss": "0.4"}
-ALPHA_PID = {"depth_control": "false", "yaw_pid_kp": "0.9", "yaw_pid_kd": "0.3", "yaw_pid_ki": "0.3",
-             "yaw_pid_integral_limit": "0.07", "speed_factor": "20"}
+MISSION = Path(__file__).resolve().parents[1] / "missions" / "s1_alpha"
+BIN = Path(sys.executable).parent
+TICKS = os.sysconf("SC_CLK_TCK")
+SETTLE = 3.0          # wall seconds after deploying before the window opens
+BEHIND_SHARE = 0.02   # an app that misses more than this share of its AppTicks fell behind
 
 
-def per_call(fn, n: int) -> float:
-    """Mean seconds per call of fn(i) over n calls."""
-    start = time.perf_counter()
-    for i in range(n):
-        fn(i)
-    return (time.perf_counter() - start) / n
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def prepare(folder: Path, index: int, port: int, warp: float) -> Path:
+    """A copy of s1_alpha in its own folder, with its own ServerPort, Community and MOOSTimeWarp."""
+    folder.mkdir()
+    for path in MISSION.iterdir():
+        if path.suffix in (".moos", ".bhv"):
+            shutil.copy(path, folder / path.name)
+    target = folder / "alpha.moos"
+    text = target.read_text()
+    for name, value in (("ServerPort", port), ("MOOSTimeWarp", warp), ("Community", f"alpha{index}")):
+        text, count = re.subn(rf"(?m)^\s*{name}\s*=.*$", f"{name} = {value}", text)
+        assert count == 1, f"{target}: expected one {name} line"
+    target.write_text(text)
+    return target
+
+
+def tree_cpu(root: int) -> float:
+    """CPU seconds (user + system) of `root` and every live descendant."""
+    children: dict[int, list[int]] = {}
+    stats: dict[int, float] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(entry))
+        stats[int(entry)] = (int(fields[11]) + int(fields[12])) / TICKS
+    total, todo = 0.0, [root]
+    while todo:
+        pid = todo.pop()
+        total += stats.get(pid, 0.0)
+        todo.extend(children.get(pid, []))
+    return total
+
+
+def tick_counts(watchers: list[MOOSClient]) -> dict[str, tuple[int, int]]:
+    """The latest (Iterations, TicksMissed) per app of every vessel (`<community>/<APP>`)."""
+    latest: dict[str, tuple[int, int]] = {}
+    for index, watcher in enumerate(watchers):
+        for msg in watcher.fetch():
+            match = re.search(r"Iterations=(\d+),TicksMissed=(\d+)", msg.string or "")
+            if match:
+                latest[f"alpha{index}/{msg.key[:-len('_STATUS')]}"] = (int(match.group(1)), int(match.group(2)))
+    return latest
+
+
+def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]) -> list[str]:
+    """Apps that missed more than BEHIND_SHARE of the AppTicks due between two statuses."""
+    late = []
+    for app, (iterations, missed) in sorted(after.items()):
+        iterations0, missed0 = before.get(app, (0, 0))
+        lost = missed - missed0
+        if lost > BEHIND_SHARE * (iterations - iterations0 + lost):
+            late.append(f"{app} ({lost} of {iterations - iterations0 + lost})")
+    return late
+
+
+async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...]) -> tuple[float, list[str]]:
+    """(CPU ms per vessel per simulated second, apps that fell behind their AppTick)."""
+    with tempfile.TemporaryDirectory(prefix="vehicle_bench_") as tmp:
+        antlers, watchers, tasks = [], [], []
+        try:
+            for index in range(vessels):
+                port = free_port()
+                mission = prepare(Path(tmp) / f"v{index}", index, port, warp)
+                antlers.append(await asyncio.create_subprocess_exec(
+                    str(BIN / "pAntler"), mission.name, *modes, "--quiet", cwd=mission.parent,
+                    stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
+                    start_new_session=True))
+                watcher = MOOSClient("uBenchWatch", port=port, time_warp=warp)
+                watcher.register_wildcard("*_STATUS")
+                watcher.register("IVPHELM_STATE")
+                watchers.append(watcher)
+                tasks.append(asyncio.create_task(watcher.run()))
+            deadline = time.monotonic() + 60 + 5 * vessels
+            for watcher in watchers:
+                assert await watcher.wait_connected(max(1.0, deadline - time.monotonic())), "no MOOSDB came up"
+            while not all(any(m.key == "IVPHELM_STATE" for m in w.inbox) for w in watchers):
+                assert time.monotonic() < deadline, "a helm did not come up"
+                await asyncio.sleep(0.1)
+            for watcher in watchers:
+                watcher.notify("MOOS_MANUAL_OVERRIDE", "false")
+                watcher.notify("DEPLOY", "true")
+            await asyncio.sleep(SETTLE)
+            before = tick_counts(watchers)
+            cpu0, t0 = sum(tree_cpu(a.pid) for a in antlers), time.monotonic()
+            await asyncio.sleep(window)
+            cpu1, t1 = sum(tree_cpu(a.pid) for a in antlers), time.monotonic()
+            await asyncio.sleep(2.5)      # one more status from every app
+            late = behind(before, tick_counts(watchers))
+            return 1000 * (cpu1 - cpu0) / ((t1 - t0) * warp) / vessels, late
+        finally:
+            for watcher in watchers:
+                watcher.close()
+            for antler in antlers:
+                with contextlib.suppress(ProcessLookupError):
+                    antler.send_signal(signal.SIGINT)
+            for antler in antlers:
+                try:
+                    await asyncio.wait_for(antler.wait(), 15)
+                except TimeoutError:
+                    os.killpg(antler.pid, signal.SIGKILL)
+                    await antler.wait()
+            if tasks:
+                await asyncio.wait(tasks, timeout=5)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--iterations", type=int, default=20000)
-    n = parser.parse_args().iterations
-
-    grid = LocalGrid(43.8253, -70.3304)
-    model = MarineModel(SimParams.from_config(ALPHA_SIM))
-    model.set_thrust(60)
-
-    def sim_step(i):
-        model.set_rudder(30.0 if (i // 40) % 2 else -30.0, i * 0.25)
-        model.step(0.25)
-
-    def sim_latlon(i):
-        grid.to_latlon(model.state.x, model.state.y)
-
-    engine = PIDEngine(PIDParams.from_config(ALPHA_PID))
-    builder = NodeReportBuilder("alpha", ReporterParams.from_config({"platform_type": "kayak",
-                                                                     "platform_length": "4"}))
-    for key, value in (("NAV_X", 12.5), ("NAV_Y", -40.2), ("NAV_SPEED", 2.0), ("NAV_HEADING", 181.3),
-                       ("NAV_LAT", 43.82494), ("NAV_LONG", -70.3302), ("IVPHELM_STATE", "DRIVE")):
-        builder.on_mail(key, value, 0.0)
-
-    costs = {
-        "uSimMarine model step": per_call(sim_step, n),
-        "uSimMarine lat/lon (scalar)": per_call(sim_latlon, n // 4),
-        "pMarinePID control law": per_call(lambda i: engine.control(90.0, 2.0, i % 360, 1.8, i * 0.1), n),
-        "pNodeReporter report string": per_call(lambda i: builder.node_report(float(i)), n),
-    }
-    for name, seconds in costs.items():
-        print(f"{name:32s} {seconds * 1e6:8.2f} us")
-
-    xs = np.random.default_rng(1).uniform(-5000, 5000, (2, 100_000))
-    start = time.perf_counter()
-    lat, lon = grid.to_latlon(xs[0], xs[1])
-    grid.to_local(lat, lon)
-    print(f"{'LocalGrid round trip, 100k pts':32s} {(time.perf_counter() - start) * 1e3:8.2f} ms")
-
-    per_second = (4 * costs["uSimMarine model step"] + 2 * costs["uSimMarine lat/lon (scalar)"]
-                  + 10 * costs["pMarinePID control law"] + 2 * costs["pNodeReporter report string"])
-    print(f"{'vehicle model CPU per warped s':32s} {per_second * 1e6:8.2f} us "
-          f"(one core: ~{1 / per_second:,.0f} vehicle-seconds per second, messaging excluded)")
+    parser.add_argument("--fleets", default="1,10,30", help="vessel counts to measure at warp 10")
+    parser.add_argument("--warps", default="10,20", help="warps at which to find the largest fleet that keeps up")
+    parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
+    parser.add_argument("--one", action="store_true", help="one vessel at warp 10 only")
+    parser.add_argument("--sockets", action="store_true",
+                        help="the MOOSDB as a child process, apps over loopback TCP (pAntler --one-process alone)")
+    args = parser.parse_args()
+    modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
+    fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]
+    kept_up: dict[float, dict[int, bool]] = {10.0: {}}
+    for vessels in fleets:
+        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window, modes))
+        kept_up[10.0][vessels] = not behind
+        print(f"{vessels:3d} vessel(s) at warp 10: {ms:7.2f} ms CPU per vessel per simulated second; "
+              f"behind their AppTick: {', '.join(behind) or 'none'}", flush=True)
+    if args.one:
+        return
+    for warp in (float(w) for w in args.warps.split(",")):
+        results = kept_up.setdefault(warp, {})
+        low, high = 0, None   # largest fleet known to keep up / smallest known not to
+        for vessels, ok in sorted(results.items()):
+            if ok:
+                low = max(low, vessels)
+            elif high is None or vessels < high:
+                high = vessels
+        vessels = max(1, low * 2) if high is None else (low + high) // 2
+        while vessels > low and (high is None or vessels < high) and vessels <= 64:
+            _, behind = asyncio.run(run_fleet(vessels, warp, args.window, modes))
+            print(f"  warp {warp:g}, {vessels} vessel(s): {'behind: ' + ', '.join(behind) if behind else 'kept up'}",
+                  flush=True)
+            if behind:
+                high = vessels
+            else:
+                low = vessels
+            vessels = low * 2 if high is None else (low + high) // 2
+        print(f"largest fleet that keeps up at warp {warp:g}: {low} vessel(s)", flush=True)
 
 
 if __name__ == "__main__":

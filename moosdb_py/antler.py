@@ -200,11 +200,14 @@ class Antler:
     """Starts the plan in order, echoes children's output, reports deaths, stops everything on request."""
 
     def __init__(self, mission: Mission, specs: list[LaunchSpec], *, quiet: bool = False, one_process: bool = False,
-                 out=None):
+                 host_db: bool = False, out=None):
         self.mission = mission
         self.specs = specs
         self.quiet = quiet
         self.one_process = one_process
+        self.host_db = host_db
+        self.db = None                                 # --host-db: the MOOSDB serving in this process
+        self._db_task: asyncio.Task | None = None
         self.out = out or sys.stdout
         self.children: list[Child] = []
         self.hosted: list = []
@@ -248,6 +251,8 @@ class Antler:
             pass
 
     async def _launch(self, spec: LaunchSpec) -> bool:
+        if self.host_db and spec.is_db and spec.target is not None:
+            return self._host_db(spec)
         if self.one_process and spec.hostable:
             return self._host(spec)
         try:
@@ -264,6 +269,19 @@ class Antler:
         self.say(f"launched {spec.name} (pid {process.pid})")
         return True
 
+    def _host_db(self, spec: LaunchSpec) -> bool:
+        """--host-db: the MOOSDB serves TCP from this event loop, and the hosted apps reach it without a socket."""
+        from .moosdb import db_from_args
+        try:
+            self.db = db_from_args([str(a) for a in spec.args])
+        except (SystemExit, ValueError, MissionFileError, OSError) as exc:
+            self.say(f"{spec.name}: cannot start: {exc}")
+            return False
+        self._db_task = asyncio.create_task(self.db.run())
+        self._db_task.add_done_callback(lambda t, name=spec.name: self._hosted_done(name, t))
+        self.say(f"hosting {spec.name} in-process on port {self.db.port}")
+        return True
+
     def _host(self, spec: LaunchSpec) -> bool:
         """--one-process: the MOOSApp runs in this interpreter, still its own client with its own tick."""
         app_class = _load(spec.target, check_class=True)
@@ -272,6 +290,8 @@ class Antler:
         except (ValueError, MissionFileError, OSError) as exc:
             self.say(f"{spec.name}: cannot start: {exc}")
             return False
+        if self.db is not None and app.client.port == self.db.port and app.client.host in ("127.0.0.1", "localhost"):
+            app.client.local_db = self.db
         self.hosted.append(app)
         task = asyncio.create_task(app.run_async())
         task.add_done_callback(lambda t, name=spec.name: self._hosted_done(name, t))
@@ -280,9 +300,11 @@ class Antler:
         return True
 
     def _hosted_done(self, name: str, task: asyncio.Task) -> None:
-        if not task.cancelled() and task.exception() is not None and not self.stopping.is_set():
+        if task.cancelled() or self.stopping.is_set():
+            return
+        if task.exception() is not None or task is self._db_task:
             self.failures.append(name)
-            self.say(f"{name} (in-process) failed: {task.exception()}")
+            self.say(f"{name} (in-process) failed: {task.exception() or 'stopped'}")
 
     def _echo(self, child: Child, line: bytes) -> None:
         text = line.decode("utf-8", errors="replace").rstrip("\r")
@@ -323,7 +345,8 @@ class Antler:
         """Until a stop request, or until no child is left and nothing is hosted."""
         while not self.stopping.is_set():
             if all(t.done() for t in self._hosted_tasks) and all(c.process.returncode is not None
-                                                                 for c in self.children):
+                                                                 for c in self.children) \
+                    and (self._db_task is None or self._db_task.done()):
                 self.say("every process has exited")
                 return
             await self._pause(0.2)
@@ -337,6 +360,9 @@ class Antler:
         if self._hosted_tasks:
             await asyncio.wait(self._hosted_tasks, timeout=STOP_GRACE)
         await self._terminate([c for c in self.children if c.spec.is_db])
+        if self._db_task is not None:
+            self._db_task.cancel()
+            await asyncio.wait([self._db_task], timeout=STOP_GRACE)
         for child in self.children:   # grandchildren left in a group whose leader already exited
             _signal_group(child.process.pid, signal.SIGKILL)
         if self._tasks:
@@ -375,6 +401,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="nsplug macro for a templated mission (repeatable; a bare VAR defines it empty)")
     p.add_argument("--one-process", action="store_true",
                    help="run the community's Python apps inside this process, each its own MOOS client and tick")
+    p.add_argument("--host-db", action="store_true",
+                   help="with --one-process: the MOOSDB too, and the hosted apps reach it in-process (no loopback sockets)")
     p.add_argument("--quiet", "--terse", action="store_true", help="do not echo the children's output")
     p.add_argument("--example", action="store_true", help="print an example ANTLER block")
     p.add_argument("--interface", action="store_true", help="print what pAntler subscribes to and publishes")
@@ -384,7 +412,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, str]]:
     """MOOS's `--Name=value` global overrides, apart from pAntler's own options (anywhere on the line)."""
-    own = {"nsplug", "one-process", "quiet", "terse", "example", "interface", "help", "version"}
+    own = {"nsplug", "one-process", "host-db", "quiet", "terse", "example", "interface", "help", "version"}
     rest, overrides = [], {}
     for arg in argv:
         match = re.fullmatch(r"--([\w-]+)=(.*)", arg)
@@ -416,7 +444,8 @@ def main(argv: list[str] | None = None) -> int:
         if not specs:
             print("pAntler: nothing to launch", file=sys.stderr)
             return 1
-        return asyncio.run(Antler(mission, specs, quiet=args.quiet, one_process=args.one_process).run())
+        return asyncio.run(Antler(mission, specs, quiet=args.quiet, one_process=args.one_process or args.host_db,
+                                  host_db=args.host_db).run())
 
 
 if __name__ == "__main__":

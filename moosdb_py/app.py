@@ -16,7 +16,7 @@ import sys
 import time as _time
 from pathlib import Path
 
-from .client import MOOSClient
+from .client import MOOSClient, resolve
 from .config import Params, read_params
 from .formats import print_page, version_page
 from .message import MOOSMsg
@@ -64,10 +64,12 @@ class MOOSApp:
                                  on_mail=self._on_mail, on_connect=self._on_connect, time_warp=self.time_warp)
         self.start_time = self.moos_time()
         self.iterations = 0
+        self.ticks_missed = 0   # AppTick periods that passed with no iteration: the app fell behind its AppTick
         self.app_error = False
         self._started_mono = _time.monotonic()
         self._mail: list[MOOSMsg] = []
         self._stop: asyncio.Event | None = None
+        self._wake: asyncio.Future | None = None   # the tick's sleep, resolved early by stop()
         self._stopping = False
 
     def _find_config(self) -> ProcessConfig:
@@ -138,7 +140,7 @@ class MOOSApp:
         cpu = 100.0 * (usage.ru_utime + usage.ru_stime) / max(_time.monotonic() - self._started_mono, 1e-9)
         fields = [f"AppErrorFlag={'true' if self.app_error else 'false'}", f"Uptime={uptime:g}",
                   f"cpuload={cpu:.4g}", f"memory_kb={_memory_kb()}", f"memory_max_kb={usage.ru_maxrss:g}",
-                  f"MOOSName={self.name}",
+                  f"MOOSName={self.name}", f"Iterations={self.iterations}", f"TicksMissed={self.ticks_missed}",
                   'Publishing="' + "".join(f"{k}," for k in sorted(self.client.published)) + '"',
                   'Subscribing="' + "".join(f"{k}," for k in sorted(self.client.registrations)) + '"']
         fields += [f"{k}={v}" for k, v in self.status_fields().items()]
@@ -175,12 +177,12 @@ class MOOSApp:
                 if now >= next_status:
                     next_status = now + STATUS_PERIOD
                     self.notify(f"{self.name.upper()}_STATUS", self.status())
-                next_tick = max(next_tick + 1.0 / (self.app_tick * self.time_warp), now)   # AppTick may change
-                try:
-                    async with asyncio.timeout(max(0.0, next_tick - _time.monotonic())):
-                        await self._stop.wait()
-                except TimeoutError:
-                    pass
+                period = 1.0 / (self.app_tick * self.time_warp)   # AppTick may change
+                next_tick += period
+                if now > next_tick:
+                    self.ticks_missed += int((now - next_tick) / period)
+                    next_tick = now
+                await self._until(next_tick)
             mail, self._mail = self._mail, []
             if mail:   # mail that arrived with the stop request is still handled (pLogger writes it)
                 self.on_new_mail(mail)
@@ -192,10 +194,23 @@ class MOOSApp:
             except TimeoutError:
                 comms.cancel()
 
+    async def _until(self, when: float) -> None:
+        """Sleep until monotonic time `when` or a stop: one future and one timer a tick, the least asyncio offers."""
+        loop = asyncio.get_running_loop()
+        self._wake = wake = loop.create_future()
+        timer = loop.call_at(loop.time() + when - _time.monotonic(), resolve, wake)
+        try:
+            await wake
+        finally:
+            timer.cancel()
+            self._wake = None
+
     def stop(self) -> None:
         self._stopping = True
         if self._stop is not None:
             self._stop.set()
+        if self._wake is not None:
+            resolve(self._wake)
 
     def run(self) -> None:
         async def runner():

@@ -22,6 +22,12 @@ TIMING_PERIOD = 1.0
 HANDSHAKE_TIMEOUT = 5.0
 
 
+def resolve(future: asyncio.Future) -> None:
+    """Wake whoever awaits `future` (a sleep that ends early), once."""
+    if not future.done():
+        future.set_result(None)
+
+
 class Poisoned(ConnectionError):
     """The DB refused this client (e.g. its name is taken); MOOS clients then stop trying."""
 
@@ -37,8 +43,9 @@ class MOOSClient:
 
     def __init__(self, name: str, host: str = "127.0.0.1", port: int = 9000, *,
                  on_mail: Callable[[list[MOOSMsg]], None] | None = None,
-                 on_connect: Callable[[], None] | None = None, time_warp: float = 1.0):
+                 on_connect: Callable[[], None] | None = None, time_warp: float = 1.0, local_db=None):
         self.name, self.host, self.port = name, host, port
+        self.local_db = local_db    # a MOOSDB in this event loop: connect through `open_local`, no socket
         self.on_mail, self.on_connect = on_mail, on_connect
         self.time_warp = time_warp
         self.connected = False
@@ -56,7 +63,7 @@ class MOOSClient:
         self._outbox: list[MOOSMsg] = []
         self._next_id = 0
         self._closing = False
-        self._wake: asyncio.Event | None = None
+        self._wake: asyncio.Future | None = None   # the write loop's sleep, resolved early by a post or close()
         self._connected_event: asyncio.Event | None = None
         self._closed_event: asyncio.Event | None = None
 
@@ -66,10 +73,13 @@ class MOOSClient:
     # -- life cycle ----------------------------------------------------------------------------
     async def run(self) -> None:
         """Connect and serve until `close()` (or a poison from the DB)."""
-        self._wake, self._connected_event, self._closed_event = asyncio.Event(), asyncio.Event(), asyncio.Event()
+        self._connected_event, self._closed_event = asyncio.Event(), asyncio.Event()
         while not self._closing:
             try:
-                reader, writer = await asyncio.open_connection(self.host, self.port)
+                if self.local_db is not None:
+                    reader, writer = self.local_db.open_local()
+                else:
+                    reader, writer = await asyncio.open_connection(self.host, self.port)
             except OSError as exc:
                 log.debug("%s: cannot connect to %s:%d: %s", self.name, self.host, self.port, exc)
             else:
@@ -107,7 +117,8 @@ class MOOSClient:
         """Send what is queued, then disconnect and stop reconnecting."""
         self._closing = True
         if self._wake is not None:
-            self._wake.set()
+            resolve(self._wake)
+        if self._closed_event is not None:
             self._closed_event.set()
 
     def _disconnected(self, writer: asyncio.StreamWriter) -> None:
@@ -158,16 +169,17 @@ class MOOSClient:
 
     async def _write_loop(self, writer: asyncio.StreamWriter) -> None:
         last_timing = -1e300
-        wake = self._wake
+        loop = asyncio.get_running_loop()
         while True:
             delay = last_timing + TIMING_PERIOD - _time.monotonic()
             if delay > 0 and not self._outbox and not self._closing:
+                self._wake = wake = loop.create_future()
+                timer = loop.call_later(delay, resolve, wake)
                 try:
-                    async with asyncio.timeout(delay):
-                        await wake.wait()
-                except TimeoutError:
-                    pass
-            wake.clear()
+                    await wake
+                finally:
+                    timer.cancel()
+                    self._wake = None
             msgs, self._outbox = self._outbox, []
             mono = _time.monotonic()
             if mono - last_timing >= TIMING_PERIOD:
@@ -210,7 +222,7 @@ class MOOSClient:
             log.warning("%s: outbox over %d messages, dropping the oldest half", self.name, OUTBOX_LIMIT)
             del outbox[:len(outbox) // 2]
         if self._wake is not None:
-            self._wake.set()
+            resolve(self._wake)
 
     def _apply_subscriptions(self) -> None:
         for key, interval in self.registrations.items():

@@ -22,7 +22,7 @@ The rules chosen (docs/formats.md says the same):
 * **Seglists**: `pts={x,y:x,y}` (the standard form, possibly inside a key=value list), the
   abbreviated `x,y:x,y` (optionally after `pts:` or `points:`), vertices as `x,y`, `x,y,z`
   (z ignored) or `x=..,y=..`; items like `label,foo` in the abbreviated form are properties,
-  not vertices. Generated patterns (`format=lawnmower`, `radial:`...) are not point lists:
+  not vertices, but a lone word (`60,-40:oops`) is an error. Generated patterns (`format=lawnmower`, `radial:`...) are not point lists:
   the geometry library that builds them reads those.
 * **Wildcards** are MOOSWildCmp: whole string, case-sensitive, only `*` and `?` special.
 """
@@ -161,8 +161,8 @@ def _vertex(item: str, index: int, abbreviated: bool) -> tuple[float, float] | N
             raise FormatError(f"vertex {index} {item!r} needs x= and y=")
         return _coordinate(props["x"], item, index), _coordinate(props["y"], item, index)
     fields = item.split(",")
-    if not is_number(fields[0]) and abbreviated:
-        return None
+    if not is_number(fields[0]) and abbreviated and len(fields) > 1:
+        return None    # `oops` alone is neither a vertex nor a property: MOOS-IvP rejects the whole list
     if len(fields) < 2:
         raise FormatError(f"vertex {index} {item!r} is not x,y")
     if len(fields) > 3:

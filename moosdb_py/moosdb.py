@@ -58,6 +58,58 @@ class ClientConnection(asyncio.Protocol):
                                             db.now()))
 
 
+class _LocalTransport:
+    """The DB's side of an in-process connection: what the core sends lands in the client's reader."""
+
+    def __init__(self, reader: asyncio.StreamReader):
+        self.reader = reader
+
+    def write(self, data: bytes) -> None:
+        if not self.reader.at_eof():
+            self.reader.feed_data(data)
+
+    def get_write_buffer_size(self) -> int:
+        return 0   # the client's own task drains its reader every loop pass
+
+    def close(self) -> None:
+        if not self.reader.at_eof():
+            self.reader.feed_eof()
+
+    abort = close
+
+
+class LocalWriter:
+    """The client's side of an in-process connection, shaped like the asyncio.StreamWriter a socket gives.
+
+    Bytes written go straight to the core (`receive`, as a socket's bytes do) and the core's answers
+    to the connections' handles, so the mail is the same as over TCP: same codec, same routing.
+    """
+
+    def __init__(self, db: "MOOSDB", reader: asyncio.StreamReader):
+        self.db = db
+        self.client = db.core.connect(_LocalTransport(reader), "in-process", db.now())
+        self.closed = False
+
+    def write(self, data: bytes) -> None:
+        if self.closed:
+            raise ConnectionResetError("in-process connection closed")
+        db = self.db
+        db.transmit(db.core.receive(self.client, data, moos_time(db.time_warp)))
+
+    async def drain(self) -> None:
+        if self.closed:
+            raise ConnectionResetError("in-process connection closed")
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self.db.transmit(self.db.core.connection_lost(self.client, "closed by client", self.db.now()))
+            self.client.handle.close()
+
+    def is_closing(self) -> bool:
+        return self.closed
+
+
 class MOOSDB:
     """The asyncio server around a `MOOSDBCore`."""
 
@@ -75,6 +127,7 @@ class MOOSDB:
         self.name = self.core.name
         self._server: asyncio.Server | None = None
         self._housekeeping: asyncio.Task | None = None
+        self._serving = False
 
     @property
     def clients(self) -> dict[str, DBClient]:
@@ -97,6 +150,7 @@ class MOOSDB:
                                                 backlog=4096, reuse_address=True)
         self.port = self._server.sockets[0].getsockname()[1]
         self._housekeeping = asyncio.create_task(self._housekeep())
+        self._serving = True
         log.info("%s listening on %s:%d (time warp %g)", self.name, self.host, self.port, self.time_warp)
 
     async def run(self) -> None:
@@ -107,7 +161,15 @@ class MOOSDB:
         finally:
             self.close()
 
+    def open_local(self) -> tuple[asyncio.StreamReader, LocalWriter]:
+        """A connection for a client in this process and event loop, without a socket (pAntler --host-db)."""
+        if not self._serving:
+            raise ConnectionRefusedError(f"{self.name} is not serving")
+        reader = asyncio.StreamReader()
+        return reader, LocalWriter(self, reader)
+
     def close(self) -> None:
+        self._serving = False
         if self._housekeeping:
             self._housekeeping.cancel()
         if self._server:
@@ -183,6 +245,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--interface", action="store_true", help="print what the DB publishes")
     p.add_argument("--version", action="version", version=version_page("MOOSDB"), help="print the release")
     return p
+
+
+def db_from_args(argv: list[str]) -> MOOSDB:
+    """The DB the `moosdb` command line describes (pAntler builds a hosted DB from its Run line with it)."""
+    return MOOSDB(**_settings(_parser().parse_args(argv)))
 
 
 def _settings(args: argparse.Namespace) -> dict:

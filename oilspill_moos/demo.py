@@ -1,15 +1,14 @@
 """`make demo`: the oil-spill mission end to end, headless, with time warp.
 
-Launches missions/oilspill (a shoreside and N vehicle communities, one pAntler
-each), pushes a predicted boundary to pPathAssign over TCP (from the forecaster
-when its trained weights are present, else the outline shipped with the
-mission), follows the fleet through STATION-KEEPING -> STARTING-POSITION ->
-OIL-PATH, pushes a second boundary that re-plans, and leaves a report in a folder of its own,
-demo-output/<UTC time>/ (demo-output/latest names the newest): tracks.png (tracks, boundaries and
-loops), timeline.json and the mission's logs in run/. While the vessels transit it prints the
-distance they have to go and when they should arrive.
+By default a spill response at real scale (oilspill_moos/response_demo.py): 8 vessels, a truth
+spill (a held-out scenario moving on the mission clock), three forecast cycles two mission hours
+apart, each re-planned by pPathAssign from where the vessels are with an arc of the stand-off loop
+per vessel; the measures printed as it goes and a summary at the end; report.html with its PNGs in
+a folder of its own, demo-output/<UTC time>/ (demo-output/latest names the newest).
+`--source shipped` runs the small demo instead: the two outlines shipped with the mission, three
+vehicles on whole loops, tracks.png and timeline.json. `--feedback` runs the closed loop.
 
-    python -m oilspill_moos.demo [--vehicles N] [--warp W] [--out DIR] [--loop-time S]
+    python -m oilspill_moos.demo [--vehicles N] [--warp W] [--cycles C] [--cycle-hours H] [--out DIR]
 """
 from __future__ import annotations
 
@@ -26,18 +25,17 @@ import shapely
 from moosdb_py.formats import FormatError, parse_number, parse_pairs
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import BoundaryPusher
-from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.oilspill_mission import MISSION_DIR, ORIGIN, STANDOFF, Observer, OilspillMission, wait_for
+from oilspill_moos.oilspill_mission import MISSION_DIR, Observer, OilspillMission, wait_for
 from oilspill_moos.response.path_assign import (
     OIL_PATH,
     STARTING_POSITION,
     STATION_KEEPING,
-    parse_boundary_line,
 )
-from oilspill_moos.response.planner import containment_region
 from oilspill_moos.viewer.app import viewer_beside
 
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
+RESPONSE_VEHICLES = 8
+RESPONSE_WARP = 12.0    # what this shared 2-core machine keeps up with for 8 vessels (docs/demo.md)
 
 
 def shipped_boundaries() -> list[bytes]:
@@ -45,21 +43,18 @@ def shipped_boundaries() -> list[bytes]:
 
 
 async def run_demo(out: Path, vehicles: int, warp: float, loop_time: float, timeout: float,
-                   cycles: list[list[bytes]], origin: str, starts: list[tuple[float, float]] | None,
                    viewer_port: int | None = None) -> dict:
-    forecast = origin.startswith("forecaster")
-    # forecast outlines are tens of kilometres across: transits of kilometres at the helm's top speed,
-    # and pPathAssign waits for them rather than start the loops without the vehicles
-    mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, starts=starts,
-                              operating_radius=0.0 if forecast else 20000.0,
-                              extra={"TRANSIT_SPEED": "4", "ARRIVAL_TIMEOUT": "3000"} if forecast else {})
-    report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": origin, "cycles": []}
+    """The small demo: the two outlines shipped with the mission, the fleet on a start line south of them,
+    each vessel running the whole loop (PATROL=loop), `loop_time` mission seconds watched per boundary."""
+    cycles = [[line] for line in shipped_boundaries()]
+    mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, extra={"PATROL": "loop"})
+    report: dict = {"vehicles": vehicles, "warp": warp, "boundary_source": SHIPPED_BOUNDARIES.name, "cycles": []}
     with mission, viewer_beside(mission.folder / mission.shoreside.moos_file, viewer_port):
         observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
         client_task = asyncio.create_task(observer.client.run())
         try:
             await observer.client.wait_connected(timeout)
-            observer.note("start", f"{vehicles} vehicles, time warp {warp:g}, boundary from {origin}")
+            observer.note("start", f"{vehicles} vehicles, time warp {warp:g}, boundary from {SHIPPED_BOUNDARIES.name}")
             await wait_for(lambda: observer.vehicles_seen() >= set(mission.fleet), timeout,
                            "every vehicle's NODE_REPORT on the shoreside", mission)
             observer.note("online", ":".join(sorted(mission.fleet)))
@@ -184,84 +179,6 @@ def timeline_problems(report: dict, mission_s: float) -> list[str]:
     return problems
 
 
-def weights_dir(given: Path | None) -> Path:
-    """The forecaster's weights: `given`, else the folder it ships them in.
-    Imported here: the training module pulls in torch, which the shipped-outline demo does not need."""
-    from oilspill_moos.forecaster.train import WEIGHTS_DIR
-
-    return Path(given or WEIGHTS_DIR)
-
-
-def forecaster_ready(weights: Path) -> bool:
-    """The forecaster can only forecast with trained weights."""
-    return any(weights.glob("*.pt"))
-
-
-async def forecaster_cycles(weights: Path, timeout: float, cycles: int = 2) -> list[list[bytes]]:
-    """Run the forecaster's operational loop against a capturing stand-in for pPathAssign until it has
-    sent `cycles` forecasts (the replay reveals one more hour of the spill per forecast), then stop it.
-
-    The demo has to know where the forecast lies before it can put the fleet near it; the captured
-    lines (one per horizon, grouped by the issue time they share) are then pushed to the real
-    pPathAssign unchanged, one forecast per cycle.
-    """
-    forecasts: dict[float, list[bytes]] = {}
-    done = asyncio.Event()
-
-    async def capture(reader, writer):
-        try:
-            while not done.is_set() and (line := await reader.readline()):
-                boundary = parse_boundary_line(line.decode(), LocalGrid(*ORIGIN))
-                forecasts.setdefault(boundary.issued, []).append(line)
-                writer.write(f"OK {sum(map(len, forecasts.values()))}\n".encode())
-                await writer.drain()
-                sizes = [len(lines) for lines in forecasts.values()]
-                if len(sizes) > cycles or (len(sizes) == cycles and sizes[-1] == sizes[0]):
-                    done.set()
-        except ConnectionError:  # the forecaster stopped mid-line: what came whole is kept
-            pass
-        writer.close()
-
-    server = await asyncio.start_server(capture, "127.0.0.1", 0)
-    port = server.sockets[0].getsockname()[1]
-    async with server:
-        process = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "oilspill_moos.forecaster", "--interval", "0.2", "--host", "127.0.0.1",
-            "--port", str(port), "--weights", str(weights), stdout=asyncio.subprocess.PIPE,
-            stderr=asyncio.subprocess.STDOUT)
-        ended, captured = asyncio.create_task(process.communicate()), asyncio.create_task(done.wait())
-        await asyncio.wait([ended, captured], timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
-        captured.cancel()
-        if process.returncode is None:
-            process.terminate()
-        output, _ = await asyncio.wait_for(ended, timeout)
-    found = [forecasts[issued] for issued in sorted(forecasts)][:cycles]
-    if len(found) < cycles or len(found[-1]) != len(found[0]):
-        raise RuntimeError(f"forecaster sent {len(found)} of {cycles} forecasts: "
-                           f"{output.decode(errors='replace')[-400:].strip()}")
-    return found
-
-
-def boundary_source(weights: Path | None, timeout: float) -> tuple[list[list[bytes]], str]:
-    """Per cycle, the lines to push: two successive forecasts of the forecaster (every horizon,
-    one forecast per cycle) when `weights` is given, else the two outlines shipped with the mission."""
-    if weights is not None:
-        return asyncio.run(forecaster_cycles(weights, timeout)), f"forecaster (weights in {weights})"
-    return [[line] for line in shipped_boundaries()], SHIPPED_BOUNDARIES.name
-
-
-def stations_around(cycles: list[list[bytes]], vehicles: int, standoff: float) -> list[tuple[float, float]]:
-    """Vehicle starts for forecasts tens of kilometres across: evenly round the stand-off loop of every
-    cycle's nearest horizon together, 300 m further out (a fleet already on station around the spill
-    area, outside each stand-off polygon to come), so the transits take minutes, not hours."""
-    grid = LocalGrid(*ORIGIN)
-    nearest = [min((parse_boundary_line(line.decode(), grid) for line in lines), key=lambda b: b.horizon_h)
-               for lines in cycles]
-    outlines = shapely.union_all([containment_region(b.polygon, 0.0) for b in nearest])
-    ring = containment_region(outlines, standoff + 300.0).exterior
-    return [tuple(ring.interpolate(ring.length * (i + 0.5) / vehicles).coords[0]) for i in range(vehicles)]
-
-
 def metre_axes(ax) -> None:
     """Axes in m, or km past 5 km across (forecast outlines are tens of km wide), with few enough
     ticks that their labels never run into each other."""
@@ -335,17 +252,25 @@ def new_run_folder(base: Path, stamp: str | None = None) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m oilspill_moos.demo", description=__doc__.split("\n\n")[0],
                                      epilog=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--vehicles", type=int, default=3, help="fleet size (default 3)")
-    parser.add_argument("--warp", type=float, default=10.0, help="MOOSTimeWarp (default 10)")
+    parser.add_argument("--vehicles", type=int, default=None,
+                        help=f"fleet size (default {RESPONSE_VEHICLES}; 3 with --source shipped)")
+    parser.add_argument("--warp", type=float, default=None,
+                        help=f"MOOSTimeWarp (default {RESPONSE_WARP:g}; 10 with --source shipped)")
     parser.add_argument("--out", type=Path, default=Path("demo-output"),
                         help="reports go to OUT/<UTC time of the run>/, OUT/latest names the newest "
                              "(default demo-output)")
+    parser.add_argument("--cycles", type=int, default=3, help="forecast cycles (default 3)")
+    parser.add_argument("--cycle-hours", type=float, default=2.0,
+                        help="mission hours between forecast cycles, each patrolled until the next (default 2)")
+    parser.add_argument("--reach", type=float, default=1000.0,
+                        help="metres within which a patrolling vessel covers the true perimeter (default 1000)")
     parser.add_argument("--loop-time", type=float, default=120.0,
-                        help="mission seconds to watch the loops before the next boundary (default 120)")
+                        help="--source shipped: mission seconds to watch the loops before the next boundary "
+                             "(default 120)")
     parser.add_argument("--timeout", type=float, default=180.0, help="wall seconds allowed per step (default 180)")
-    parser.add_argument("--source", choices=("auto", "forecaster", "shipped"), default="auto",
-                        help="boundaries from the forecaster, the shipped outlines, or the forecaster when its "
-                             "weights exist (default auto)")
+    parser.add_argument("--source", choices=("forecaster", "shipped"), default="forecaster",
+                        help="forecaster: the real-scale response against a truth spill (default); shipped: the "
+                             "two small outlines shipped with the mission, whole loops")
     parser.add_argument("--weights", type=Path, default=None,
                         help="forecaster weights folder (default: the ones shipped with the forecaster)")
     parser.add_argument("--viewer", type=int, nargs="?", const=8080, default=None, metavar="PORT",
@@ -353,33 +278,40 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--feedback", action="store_true",
                         help="the closed loop instead: truth spill, fleet sensing, corrected forecast (docs/feedback.md)")
     args = parser.parse_args(argv)
-    if args.warp <= 0 or args.vehicles < 1:
-        parser.error("--warp must be > 0 and --vehicles >= 1")
+    shipped = args.source == "shipped" or args.feedback
+    vehicles = args.vehicles or (3 if shipped else RESPONSE_VEHICLES)
+    warp = args.warp or (10.0 if shipped else RESPONSE_WARP)
+    if warp <= 0 or vehicles < 1 or args.cycles < 1 or args.cycle_hours <= 0:
+        parser.error("--warp and --cycle-hours must be > 0, --vehicles and --cycles >= 1")
     out = new_run_folder(args.out)
     print(f"demo: this run's report goes to {out}/ ({args.out / 'latest'} names it)", flush=True)
-    if args.feedback:
-        from oilspill_moos import feedback_demo
-
-        try:
-            return feedback_demo.main(out, args.vehicles, args.warp, args.loop_time, args.timeout)
-        except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
-            print(f"demo: {exc}", file=sys.stderr)
-            return 1
     started = time.monotonic()
     try:
-        weights = weights_dir(args.weights) if args.source != "shipped" else None
-        use = args.source == "forecaster" or (weights is not None and forecaster_ready(weights))
-        cycles, origin = boundary_source(weights if use else None, args.timeout)
-        starts = stations_around(cycles, args.vehicles, STANDOFF) if origin.startswith("forecaster") else None
-        report = asyncio.run(run_demo(out, args.vehicles, args.warp, args.loop_time, args.timeout,
-                                      cycles, origin, starts, args.viewer))
+        if args.feedback:
+            from oilspill_moos import feedback_demo
+
+            return feedback_demo.main(out, vehicles, warp, args.loop_time, args.timeout)
+        if shipped:
+            report = asyncio.run(run_demo(out, vehicles, warp, args.loop_time, args.timeout, args.viewer))
+            for cycle in report["cycles"]:
+                print(f"boundary {cycle['boundary']}: push -> all on the loop in {cycle['push_to_loop_s']:.1f} "
+                      f"mission s (station-keeping {cycle['station_keeping_s']:.1f} s, "
+                      f"transit {cycle['transit_s']:.1f} s)")
+            print(f"demo: done in {time.monotonic() - started:.0f} s; report in {out}/ (tracks.png, timeline.json)")
+        else:
+            from oilspill_moos.response_demo import run_response, summary_lines
+            from oilspill_moos.response_report import write_response_report
+
+            record = asyncio.run(run_response(out, vehicles, warp, args.cycles, args.cycle_hours, args.timeout,
+                                              args.weights, reach=args.reach, viewer_port=args.viewer))
+            page = write_response_report(out, record)
+            print("summary:")
+            for line in summary_lines(record):
+                print("  " + line)
+            print(f"demo: done in {time.monotonic() - started:.0f} s; report: {page}")
     except (TimeoutError, RuntimeError, MissionFileError, ConnectionError) as exc:
         print(f"demo: {exc}", file=sys.stderr)
         return 1
-    for cycle in report["cycles"]:
-        print(f"boundary {cycle['boundary']}: push -> all on the loop in {cycle['push_to_loop_s']:.1f} mission s "
-              f"(station-keeping {cycle['station_keeping_s']:.1f} s, transit {cycle['transit_s']:.1f} s)")
-    print(f"demo: done in {time.monotonic() - started:.0f} s; report in {out}/ (tracks.png, timeline.json)")
     run = out / "run"
     print(f"replay it in the browser: pMarineViewer {run / 'targ_shoreside.moos'} "
           f"--replay={run / 'logs' / 'LOG_SHORESIDE' / 'LOG_SHORESIDE.alog'}")

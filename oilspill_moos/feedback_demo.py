@@ -34,7 +34,8 @@ from oilspill_moos.forecaster.features import to_plane
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
 from oilspill_moos.response.oil_fusion import ScenarioMap
-from oilspill_moos.response.path_assign import OIL_PATH, format_points, parse_report
+from oilspill_moos.messages import format_points, parse_report
+from oilspill_moos.response.path_assign import OIL_PATH
 
 SCENARIO = "strong_forcing-2214"   # held out from the shipped weights' training
 MAP_SCALE = 0.015                  # its ~8 km slick becomes ~120 m: a kayak loop of a minute or two

@@ -18,7 +18,7 @@ from pathlib import Path
 from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
 from moosdb_py.ports import free_port
-from oilspill_moos.response.path_assign import parse_polygon_spec, parse_report
+from oilspill_moos.messages import parse_points_update, parse_polygon_spec, parse_report
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION_DIR = REPO / "missions" / "oilspill"
@@ -194,6 +194,9 @@ class Observer:
                 except (KeyError, ValueError):
                     continue
             elif msg.key == "OILSPILL_PHASE":
+                last = next((e for e in reversed(self.events) if e["event"] == "phase"), None)
+                if last is not None and last["what"] == value and last["moos_s"] >= round(msg.time - self.t0, 2):
+                    continue   # the phase in force again, as the DB sends it on a reconnection: no new phase
                 self.phase = value
                 self.phase_count[value] = self.phase_count.get(value, 0) + 1
                 self.note("phase", value, msg.time)
@@ -205,7 +208,7 @@ class Observer:
                 self.regions.append(parse_polygon_spec(value))
             elif msg.key.startswith(("OIL_PATH_UPDATES_", "STARTING_POSITION_UPDATES_")):
                 kind, _, name = msg.key.partition("_UPDATES_")
-                points = parse_polygon_spec(f"pts={{{value.split('#')[0].partition('=')[2]}}}")
+                points, _ = parse_points_update(value)
                 (self.loops if kind == "OIL_PATH" else self.routes)[name.lower()] = points
             elif msg.key in ("OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
                 if msg.key == "OILSPILL_DROPPED":

@@ -1,4 +1,5 @@
-"""Shared test helpers: waiting on conditions (never bare sleeps) and reading the conformance captures."""
+"""Shared test helpers: waiting on conditions (never bare sleeps), the conformance captures, and the
+`requires_shared` marker for tests that read what stays outside the repo."""
 from __future__ import annotations
 
 import asyncio
@@ -12,9 +13,16 @@ from dataclasses import dataclass
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
+
 from moosdb_py.ports import free_port  # the product's (the demo uses it too); conftest re-exports it
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared"
+# What ../shared holds that the repo may not (not ours to redistribute); tests reading it skip without it.
+SHARED_PARTS = {"missions-corpus": "the MOOS-IvP mission corpus",
+                "data/dwh": "the NOAA/ERMA Deepwater Horizon composites"}
+CORPUS = SHARED / "missions-corpus"
+DWH = SHARED / "data" / "dwh"
 # The C++ MOOS byte captures ship with the repo (tests/data/README.md says where they came from).
 CONFORMANCE = Path(__file__).resolve().parent / "data" / "conformance"
 
@@ -40,6 +48,19 @@ async def async_wait_until(predicate: Callable[[], object], timeout: float = 5.0
     while not (result := _check(predicate, deadline, timeout)):
         await asyncio.sleep(interval)
     return result
+
+
+def shared_missing(part: str) -> str | None:
+    """The skip reason when ../shared/<part> is absent (a clone with nothing beside it), else None."""
+    if (SHARED / part).exists():
+        return None
+    return f"needs ../shared/{part}: {SHARED_PARTS[part]}, kept outside the repo (not ours to redistribute)"
+
+
+def requires_shared(part: str) -> pytest.MarkDecorator:
+    """Mark a test (or a module, as `pytestmark`) that reads ../shared/<part>: it skips with one reason."""
+    reason = shared_missing(part)
+    return pytest.mark.skipif(reason is not None, reason=reason or "")
 
 
 def conformance_files() -> list[Path]:

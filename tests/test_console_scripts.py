@@ -16,10 +16,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
 SCRIPTS = PROJECT["scripts"]
 APPS = PROJECT["entry-points"]["moosdb_py.apps"]     # the MOOSApp classes pAntler can host
-TOOLS = {"moos-lint"}                    # a file tool, not a MOOS app: --help only
-# --version: the DB's command line is the DB core engineer's, moos-lint the newcomer engineer's and the
-# forecaster the forecaster engineer's (issue 14 asks it of them too); every other script answers it here.
-NO_VERSION_YET = {"moos-lint", "oilspill-forecaster"}
+# --version: the forecaster is the forecaster engineer's (issue 14 asks it of them too); every other
+# script answers it here.
+NO_VERSION_YET = {"oilspill-forecaster"}
 SHORT_PAGES = {"uXMS", "uPokeDB"} | {name for name in SCRIPTS if SCRIPTS[name].rpartition(":")[0] in
                                     {value.rpartition(":")[0] for value in APPS.values()}}
 NOT_DB_CLIENTS = {"oilspill-forecaster"}  # talks TCP to pPathAssign: its interface is input and output
@@ -48,7 +47,7 @@ def test_script_resolves_and_answers_help(name, capsys):
     assert len(page(name, "--help", capsys).strip()) > 40
 
 
-@pytest.mark.parametrize("name", sorted(set(SCRIPTS) - TOOLS))
+@pytest.mark.parametrize("name", sorted(SCRIPTS))   # moos-lint too: its interface says it has none
 def test_app_answers_example_and_interface(name, capsys):
     assert page(name, "--example", capsys).strip()
     interface = page(name, "--interface", capsys).upper()

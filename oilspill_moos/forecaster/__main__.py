@@ -8,24 +8,24 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from datetime import datetime
 from pathlib import Path
 
 from moosdb_py.app import print_page
 
-from . import operational
-
 SUBCOMMANDS = ("simulate", "train", "evaluate", "forecast", "push")
 
 DESCRIPTION = """\
-The LTC oil-spill boundary forecaster. Without a subcommand it runs the operational loop: it reads
-the latest observation(s), forecasts the spill boundary 3, 7, 11 and 15 h ahead with the shipped
-weights, and pushes one line per horizon to pPathAssign over TCP (127.0.0.1:9100 by default),
-reconnecting when pPathAssign restarts.
+The oil-spill boundary forecaster: a physics prior (the observed footprint drifted by current +
+windage x wind and spread by diffusion) with a learned LTC correction. Without a subcommand it runs
+the operational loop: it reads the latest observation(s), forecasts the spill 3, 7, 11 and 15 h
+ahead, and pushes one line per horizon to pPathAssign over TCP (127.0.0.1:9100 by default),
+reconnecting when pPathAssign restarts. Naive times are UTC.
 
 subcommands (each has its own --help):
-  simulate   generate OpenOil scenarios (needs the [drift] extra)
-  train      train the LTC (RK4, Euler, fused) and LSTM models on the committed scenarios
-  evaluate   score models and baselines on held-out scenarios; write docs/forecaster-report.md
+  simulate   generate OpenOil scenarios over the northern Gulf (needs the [drift] extra)
+  train      train the learned corrections (LTC RK4/Euler/fused, LSTM) and calibrate every kind
+  evaluate   score every kind on the out-of-distribution split; write docs/forecaster-report.md
   forecast   forecast from polygon files; print the boundary lines (JSON, one per horizon)
   push       send boundary lines or polygon files to pPathAssign
 """
@@ -35,15 +35,17 @@ EXAMPLE = """\
 # Its settings are command-line flags, every one shown with its default:
 #   --host 127.0.0.1            pPathAssign's boundary server
 #   --port 9100
-#   --model ltc-fused           ltc-fused | ltc-rk4 | ltc-euler | lstm
+#   --model {model:<19} ltc-fused | ltc-rk4 | ltc-euler | lstm | physics | persistence
+#                               | constant-velocity | constant-velocity-growth
 #   --weights oilspill_moos/forecaster/weights
 #   --interval 60               seconds between polls of the observations
 #   --connect-timeout 30        seconds to keep retrying pPathAssign
 #   --observations DIR          polygon files to watch (default: replay a held-out shipped scenario)
 #   --once                      forecast and push once, then exit
-#   --wind U,V  --current U,V  --sea-temp C   forcing when the files carry none (default: training mean)
+#   --forcing FILE              CSV/JSON of time,wind_u,wind_v,current_u,current_v (default: none)
+#   --wind U,V  --current U,V   constant forcing instead of --forcing (default: none: no drift)
 #   --feedback FILE             uFldOilFusion's observations: re-anchor on the fleet's readings (default: none)
-python -m oilspill_moos.forecaster --host 127.0.0.1 --port 9100 --model ltc-fused --interval 60
+python -m oilspill_moos.forecaster --host 127.0.0.1 --port 9100 --model {model} --interval 60
 """
 
 INTERFACE = """\
@@ -52,31 +54,41 @@ oilspill-forecaster: interface
           time from a 'time' property or the file name (e.g. slick_20100424T1643.geojson)
   OUTPUT  TCP to pPathAssign (default 127.0.0.1:9100), one UTF-8 line per horizon:
           {"type":"boundary","time":<valid epoch s>,"horizon_h":3|7|11|15,"crs":"EPSG:4326",
-           "polygon":[[lon,lat],...],"uncertainty_m":<1-sigma centroid spread>,"source":"ltc-fused"}
+           "polygon":[[lon,lat],...],"uncertainty_m":<calibrated 1-sigma centroid error>,"source":"<kind>"}
+          (a multi-part forecast is pushed as the outline enclosing every part over 5 % of its area)
   REPLY   OK <seq> | ERR <reason>   (a rejected line is logged; the others still go)
   MOOS    none directly: pPathAssign posts OILSPILL_BOUNDARY and drives the fleet
 """
 
 
 def forecast_main(argv) -> int:
-    from datetime import datetime
-
-    from .readers import read_polygons
+    from . import operational
+    from .readers import PolygonFileError, read_forcing, read_polygons
 
     parser = argparse.ArgumentParser(prog="oilspill-forecaster forecast",
-                                     description="Forecast from polygon files (at least two, any order) and "
+                                     description="Forecast from polygon files (any order; naive times are UTC) and "
                                                  "print one boundary line per horizon.")
     parser.add_argument("files", nargs="+", type=Path, help="observations: .geojson/.json/.shp")
     parser.add_argument("--model", choices=operational.KINDS, default=operational.DEFAULT_MODEL)
     parser.add_argument("--weights", type=Path, default=operational.WEIGHTS_DIR)
+    parser.add_argument("--forcing", type=Path, help="CSV or JSON of time,wind_u,wind_v,current_u,current_v: "
+                        "forcing at each observation and over the horizon")
     args = parser.parse_args(argv)
-    observations = sorted((read_polygons(p) for p in args.files), key=lambda o: o.time or datetime.min)
-    undated = [str(o.path) for o in observations if o.time is None]
-    if undated:
-        parser.error(f"no observation time in {', '.join(undated)} (a 'time' property or a date in the name)")
-    forecaster = operational.Forecaster(args.weights, args.model)
     try:
-        for f in forecaster.forecast([o.geometry for o in observations], [o.time for o in observations]):
+        observations = sorted((read_polygons(p) for p in args.files), key=lambda o: o.time or datetime.min)
+        undated = [str(o.path) for o in observations if o.time is None]
+        if undated:
+            parser.error(f"no observation time in {', '.join(undated)} (a 'time' property or a date in the name)")
+        forcing = operational.Forcing(rows=read_forcing(args.forcing) if args.forcing else None)
+        times = [o.time for o in observations]
+        forecaster = operational.Forecaster(args.weights, args.model)
+        forecasts = forecaster.forecast([o.geometry for o in observations], times, forcing.at(times),
+                                        horizon_forcing=forcing.after(times[-1]))
+    except (PolygonFileError, OSError, ValueError) as exc:
+        print(f"oilspill-forecaster forecast: {exc}", file=sys.stderr)
+        return 1
+    try:
+        for f in forecasts:
             sys.stdout.write(f.line().decode())
         sys.stdout.flush()
     except BrokenPipeError:           # `forecast ... | head -1`: the reader has all it wanted
@@ -85,6 +97,7 @@ def forecast_main(argv) -> int:
 
 
 def push_main(argv) -> int:
+    from . import operational
     from .push import PushRejected, PushUnreachable, boundary_line, push_lines
     from .readers import read_polygons
     from .boundary import outline
@@ -129,8 +142,12 @@ def main(argv=None) -> int:
             return evaluate_main(rest)
         return forecast_main(rest) if command == "forecast" else push_main(rest)
     if "--example" in argv or "--interface" in argv:
-        print_page(EXAMPLE if "--example" in argv else INTERFACE)
+        from .kinds import DEFAULT_MODEL
+
+        print_page(EXAMPLE.format(model=DEFAULT_MODEL) if "--example" in argv else INTERFACE)
         return 0
+    from . import operational
+
     parser = operational.build_parser(argparse.ArgumentParser(
         prog="python -m oilspill_moos.forecaster", description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter))

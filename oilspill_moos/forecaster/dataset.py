@@ -9,19 +9,24 @@ window, so no hour of a test scenario is ever seen in training.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
 import shapely
-from shapely.geometry import MultiPolygon
+from shapely.geometry import MultiPolygon, Polygon
 
-from .features import Environment, feature_matrix
+from .features import DWH_LAT, DWH_LON, Environment, local_frame
 
 REGIMES = ("initial_release", "steady_growth", "strong_forcing", "multi_lobe", "dispersal")
 DATA_DIR = Path(__file__).resolve().parent / "data"
-DEFAULT_STEM = DATA_DIR / "openoil_scenarios"
+DEFAULT_STEM = DATA_DIR / "openoil_scenarios"      # the first set, all released at the DWH wellhead
+GULF_STEM = DATA_DIR / "gulf_scenarios"            # the training/evaluation set (simulate.py)
+# The out-of-distribution test split: releases in these regions, footprints by this method, never trained on.
+HELD_OUT_REGIONS = ("west", "dwh")
+HELD_OUT_METHOD = "alpha-shape"
 FORCING_COLUMNS = ("wind_u", "wind_v", "current_u", "current_v", "sea_temp_c")
 
 
@@ -36,8 +41,9 @@ class Scenario:
     params: dict
     times_h: np.ndarray
     geometries: list
-    forcing: np.ndarray  # [T, 5] FORCING_COLUMNS at each observation
-    _features: dict = field(default_factory=dict, repr=False)
+    forcing: np.ndarray  # [T, 5] FORCING_COLUMNS at each observation (the forcing a forecaster is given)
+    hourly_given: np.ndarray | None = None   # [H, 5] given forcing every hour from the release (Gulf set)
+    hourly_true: np.ndarray | None = None    # [H, 5] the forcing that moved the oil (Gulf set)
 
     def __len__(self) -> int:
         return len(self.times_h)
@@ -48,17 +54,37 @@ class Scenario:
     def environments(self) -> list[Environment]:
         return [Environment(*map(float, row)) for row in self.forcing]
 
-    def features(self, multipolygon: str = "largest") -> np.ndarray:
-        """[T, 25] observation features (cached per multipolygon mode)."""
-        if multipolygon not in self._features:
-            self._features[multipolygon] = feature_matrix(
-                self.geometries, self.times(), self.environments(), release_time=self.release_time,
-                multipolygon=multipolygon)
-        return self._features[multipolygon]
+    def observed(self, seed: int = 0, noise: bool = True) -> tuple[np.ndarray, list]:
+        """(indices, geometries) of what a satellite would have given: each hour missing with a
+        probability drawn per scenario from 0-40 % (so intervals are irregular; first and last hours
+        kept), every boundary vertex jittered by a per-scenario 0-3 % of the footprint's size, then
+        repaired. Deterministic in (scenario seed, ``seed``); ``noise=False`` gives the clean truth."""
+        if not noise:
+            return np.arange(len(self)), list(self.geometries)
+        rng = np.random.default_rng([self.seed, seed])
+        missing, jitter = rng.uniform(0.0, 0.4), rng.uniform(0.0, 0.03)
+        keep = rng.random(len(self)) >= missing
+        keep[0] = keep[-1] = True
+        index = np.flatnonzero(keep)
+        to_local, to_lonlat = local_frame(float(self.params.get("lon", DWH_LON)), float(self.params.get("lat", DWH_LAT)))
+        out = []
+        for i in index:
+            plane = shapely.transform(self.geometries[i], lambda xy: np.column_stack(to_local(xy[:, 0], xy[:, 1])))
+            size = math.sqrt(plane.area)
+            noisy = shapely.make_valid(MultiPolygon([_jittered(p, rng, jitter * size) for p in shapely.get_parts(plane)]))
+            noisy = MultiPolygon([p for p in shapely.get_parts(noisy) if p.geom_type == "Polygon"]
+                                 or list(shapely.get_parts(plane)))
+            out.append(shapely.transform(noisy, lambda xy: np.column_stack(to_lonlat(xy[:, 0], xy[:, 1]))))
+        return index, out
 
-    def sequence(self, multipolygon: str = "largest") -> tuple[np.ndarray, np.ndarray]:
-        """``(times_h, features)``: the form ``features.make_windows`` takes."""
-        return self.times_h, self.features(multipolygon)
+
+def _jittered(polygon: Polygon, rng: np.random.Generator, sigma: float) -> Polygon:
+    """``polygon`` with every vertex moved by Gaussian noise of ``sigma`` (rings kept closed)."""
+    def ring(coords):
+        xy = np.asarray(coords)[:-1]
+        xy = xy + rng.normal(0.0, sigma, xy.shape)
+        return np.vstack([xy, xy[:1]])
+    return Polygon(ring(polygon.exterior.coords), [ring(r.coords) for r in polygon.interiors])
 
 
 @dataclass
@@ -94,6 +120,11 @@ def save_dataset(scenarios: list[Scenario], stem: Path = DEFAULT_STEM, generatio
     }
     for k, off in enumerate(offsets):
         arrays[f"offsets{k}"] = np.asarray(off, np.int32)
+    if scenarios and scenarios[0].hourly_given is not None:
+        arrays["hourly_scenario"] = np.concatenate([np.full(len(s.hourly_given), i, np.int32)
+                                                    for i, s in enumerate(scenarios)])
+        arrays["hourly_given"] = np.vstack([np.asarray(s.hourly_given, np.float32) for s in scenarios])
+        arrays["hourly_true"] = np.vstack([np.asarray(s.hourly_true, np.float32) for s in scenarios])
     npz_path, json_path = stem.with_suffix(".npz"), stem.with_suffix(".json")
     np.savez_compressed(npz_path, **arrays)
     meta = dict(generation or {})
@@ -118,6 +149,7 @@ def load_dataset(stem: Path | str | None = None) -> list[Scenario]:
         geoms = shapely.from_ragged_array(shapely.GeometryType.MULTIPOLYGON,
                                           data["coords"].astype(float), offsets)
         obs_scenario, times_h, forcing = data["obs_scenario"], data["obs_time_h"], data["obs_forcing"]
+        hourly = {k: data[k] for k in ("hourly_scenario", "hourly_given", "hourly_true") if k in data}
     scenarios = []
     for i, info in enumerate(meta["scenarios"]):
         rows = np.flatnonzero(obs_scenario == i)
@@ -128,7 +160,9 @@ def load_dataset(stem: Path | str | None = None) -> list[Scenario]:
             scenario_id=info["scenario_id"], regime=info["regime"], seed=int(info["seed"]),
             release_time=_parse_time(info["release_time"]), params=info["params"],
             times_h=times_h[rows].astype(float), geometries=list(geoms[rows]),
-            forcing=forcing[rows].astype(float)))
+            forcing=forcing[rows].astype(float),
+            **({k: hourly[k][hourly["hourly_scenario"] == i].astype(float) for k in ("hourly_given", "hourly_true")}
+               if hourly else {})))
     return scenarios
 
 
@@ -138,24 +172,14 @@ def dataset_metadata(stem: Path | str | None = None) -> dict:
     return json.loads(stem.with_suffix(".json").read_text())
 
 
-def split_scenarios(scenarios: list[Scenario], *, test_fraction: float = 0.25, val_fraction: float = 0.15,
-                    seed: int = 0) -> DatasetSplit:
-    """Stratified split by regime: every regime has at least one scenario in test (and, when it has
-    three or more, one in validation); scenarios are shuffled with ``seed`` inside each regime."""
-    if not 0 < test_fraction < 1 or not 0 <= val_fraction < 1 or test_fraction + val_fraction >= 1:
-        raise ValueError("need 0 < test_fraction, 0 <= val_fraction and test + val < 1")
-    rng = np.random.default_rng(seed)
-    train, val, test = [], [], []
-    by_regime: dict[str, list[Scenario]] = {}
-    for s in scenarios:
-        by_regime.setdefault(s.regime, []).append(s)
-    for regime in sorted(by_regime):
-        group = sorted(by_regime[regime], key=lambda s: s.scenario_id)
-        group = [group[i] for i in rng.permutation(len(group))]
-        n_test = max(1, round(test_fraction * len(group)))
-        n_val = max(1 if len(group) >= 3 else 0, round(val_fraction * len(group)))
-        n_val = min(n_val, len(group) - n_test - 1) if len(group) > n_test else 0
-        test += group[:n_test]
-        val += group[n_test:n_test + n_val]
-        train += group[n_test + n_val:]
-    return DatasetSplit(train=train, val=val, test=test)
+def split_scenarios(scenarios: list[Scenario], *, val_fraction: float = 0.15, seed: int = 0) -> DatasetSplit:
+    """Out-of-distribution split by construction: test = every scenario released in a held-out region
+    or drawn with the held-out footprint method (``HELD_OUT_REGIONS``, ``HELD_OUT_METHOD``); the rest
+    is shuffled with ``seed`` and ``val_fraction`` of it kept for validation and calibration."""
+    if not 0 <= val_fraction < 1:
+        raise ValueError("need 0 <= val_fraction < 1")
+    test = [s for s in scenarios if s.params.get("region") in HELD_OUT_REGIONS or s.params.get("method") == HELD_OUT_METHOD]
+    rest = sorted((s for s in scenarios if s not in test), key=lambda s: s.scenario_id)
+    rest = [rest[i] for i in np.random.default_rng(seed).permutation(len(rest))]
+    n_val = round(val_fraction * len(rest))
+    return DatasetSplit(train=rest[n_val:], val=rest[:n_val], test=test)

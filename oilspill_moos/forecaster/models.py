@@ -1,4 +1,5 @@
-"""LTC and LSTM sequence models of the paper's "OilSpill model Architecture".
+"""LTC and LSTM sequence models of the paper's "OilSpill model Architecture", as the learned correction
+of the physics prior (``Corrector``: window features in, drift residual / area ratio / spread out).
 
 Shared frame (both recurrent cores): input projection to 128 units with ReLU and LayerNorm,
 the recurrent core over the 16-step window, multi-head attention from the last step over the
@@ -22,12 +23,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 
+from .kinds import LEARNED_KINDS as KINDS
+
 SOLVERS = ("rk4", "euler", "fused")
-KINDS = ("ltc-rk4", "ltc-euler", "ltc-fused", "lstm")
 HORIZONS_H = (3, 7, 11, 15)
 
 
@@ -145,12 +149,12 @@ class ModelConfig:
     """Everything needed to rebuild a model from a checkpoint."""
 
     kind: str = "ltc-rk4"
-    n_features: int = 25
-    n_targets: int = 6
+    n_features: int = 23
+    n_targets: int = 3
     horizons_h: tuple[int, ...] = HORIZONS_H
-    hidden: int = 128
+    hidden: int = 64
     heads: int = 4
-    unfolds: int = 6
+    unfolds: int = 4
     adaptive: bool = False
 
     def __post_init__(self):
@@ -208,3 +212,57 @@ class SpillForecaster(nn.Module):
 def build_model(kind: str = "ltc-rk4", **kwargs) -> SpillForecaster:
     return SpillForecaster(ModelConfig(kind=kind, **kwargs))
 
+
+
+class Corrector:
+    """A trained model with its scalers: ``Observations`` -> ``engine.Correction`` of the physics prior."""
+
+    def __init__(self, model: SpillForecaster, extra: dict):
+        from .features import FeatureScaler
+
+        self.model = model
+        self.feature_scaler = FeatureScaler.from_dict(extra["feature_scaler"])
+        self.target_mean = np.asarray(extra["target_scaler"]["mean"], float)
+        self.target_std = np.asarray(extra["target_scaler"]["std"], float)
+        self.horizons_h = tuple(extra["horizons_h"])
+
+    @classmethod
+    def load(cls, path) -> "Corrector":
+        model, blob = load_checkpoint(path)
+        return cls(model, blob["extra"])
+
+    @torch.no_grad()
+    def predict(self, x: np.ndarray, dt: np.ndarray, batch: int = 512) -> tuple[np.ndarray, np.ndarray]:
+        """Raw-unit (mean, sigma) [N, H, 3] for windows x [N, W, F] (unscaled), dt [N, W]."""
+        means, sigmas = [], []
+        for start in range(0, len(x), batch):
+            xb = torch.as_tensor(self.feature_scaler.transform(x[start:start + batch]), dtype=torch.float32)
+            db = torch.as_tensor(dt[start:start + batch], dtype=torch.float32)
+            mean, sigma = self.model(xb, db)
+            means.append(mean.numpy() * self.target_std + self.target_mean)
+            sigmas.append(sigma.numpy() * self.target_std)
+        mean, sigma = np.concatenate(means), np.concatenate(sigmas)
+        if not (np.isfinite(mean).all() and np.isfinite(sigma).all()):
+            raise ValueError(f"{self.model.config.kind} diverged on this window (its steps are integrated in a fixed "
+                             "number of sub-steps); the fused solver stays bounded for any step: use --model ltc-fused")
+        return mean, sigma
+
+    def correction(self, obs, params):
+        """The ``engine.Correction`` for one set of observations."""
+        from .engine import correction_from
+        from .features import window_features
+
+        x, dt, angle = window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params))
+        mean, sigma = self.predict(x[None], dt[None])
+        return correction_from(mean[0], sigma[0], angle)
+
+
+def load_checkpoint(path) -> tuple[SpillForecaster, dict]:
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint (run `python -m oilspill_moos.forecaster train`)")
+    blob = torch.load(path, map_location="cpu", weights_only=False)
+    model = SpillForecaster(ModelConfig.from_dict(blob["model_config"]))
+    model.load_state_dict(blob["state_dict"])
+    model.eval()
+    return model, blob

@@ -247,3 +247,63 @@ def read_polygons(path, *, crs=None, repair: bool = True, time: datetime | None 
     else:
         result.time = _time_from_properties(path, result.properties) or time_from_name(path)
     return result
+
+
+# ---------------------------------------------------------------------------------------------------
+# Forcing files
+
+FORCING_FIELDS = ("wind_u", "wind_v", "current_u", "current_v")
+
+
+def _forcing_time(path, where: str, text) -> datetime:
+    try:
+        time = datetime.fromisoformat(str(text).strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise PolygonFileError(path, f"{where}: time {text!r} is not ISO 8601 (e.g. 2010-05-20T06:00Z)") from None
+    return time.replace(tzinfo=timezone.utc) if time.tzinfo is None else time.astimezone(timezone.utc)
+
+
+def _forcing_row(path, where: str, record: dict):
+    from .features import Environment
+
+    missing = [k for k in ("time", *FORCING_FIELDS) if k not in record or record[k] in (None, "")]
+    if missing:
+        raise PolygonFileError(path, f"{where}: missing {', '.join(missing)}")
+    try:
+        values = [float(record[k]) for k in FORCING_FIELDS]
+        sea_temp = float(record.get("sea_temp_c") or 0.0)
+    except (TypeError, ValueError):
+        raise PolygonFileError(path, f"{where}: wind and current must be numbers (m/s)") from None
+    if not all(np.isfinite(values)) or not np.isfinite(sea_temp):
+        raise PolygonFileError(path, f"{where}: non-finite wind or current")
+    return _forcing_time(path, where, record["time"]), Environment(*values, sea_temp)
+
+
+def read_forcing(path) -> list[tuple[datetime, "Environment"]]:
+    """Forcing rows (time, Environment) in time order from a CSV (header ``time,wind_u,wind_v,current_u,
+    current_v[,sea_temp_c]``) or JSON file (a list of objects with those keys, or ``{"forcing": [...]}``).
+    Times are ISO 8601; naive times are UTC. Every error names the file and line or entry."""
+    import csv
+
+    path = Path(path)
+    if not path.is_file():
+        raise PolygonFileError(path, "no such forcing file")
+    text = path.read_text()
+    rows = []
+    if path.suffix.lower() == ".json":
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise PolygonFileError(path, f"line {exc.lineno}: not JSON ({exc.msg})") from None
+        records = doc.get("forcing") if isinstance(doc, dict) else doc
+        if not isinstance(records, list) or not all(isinstance(r, dict) for r in records):
+            raise PolygonFileError(path, 'expected a list of {"time":..., "wind_u":..., ...} objects')
+        rows = [_forcing_row(path, f"entry #{i + 1}", r) for i, r in enumerate(records)]
+    else:
+        reader = csv.DictReader(text.splitlines())
+        if reader.fieldnames is None or "time" not in reader.fieldnames:
+            raise PolygonFileError(path, f"line 1: header must name time,{','.join(FORCING_FIELDS)}")
+        rows = [_forcing_row(path, f"line {n}", r) for n, r in enumerate(reader, start=2)]
+    if not rows:
+        raise PolygonFileError(path, "no forcing rows")
+    return sorted(rows, key=lambda r: r[0])

@@ -1,12 +1,21 @@
-"""OpenDrift/OpenOil scenario generator: idealised forcing at the DWH site -> hourly spill polygons.
+"""OpenDrift/OpenOil scenario generator over the land-free northern Gulf of Mexico -> hourly footprints.
 
-Each scenario draws its wind, current, horizontal diffusivity, oil type and release schedule from the
-ranges of its regime (``REGIME_RANGES``) with its own seed, runs OpenOil offline (spatially uniform
-forcing from ``reader_timeseries``, no downloads), and turns the surface particles of every hourly
-output into a polygon with ``particles_to_polygon``: the highest-density region holding
-``mass_fraction`` of the surface particles, from a Gaussian-smoothed particle histogram on the
-equal-area plane. Multi-lobe slicks come out as MultiPolygons. OpenDrift is the optional ``[drift]``
-extra; nothing else in the forecaster needs it.
+Each scenario draws, from its own seed (``scenario_params``): a release point in one of the Gulf
+regions (``REGIONS``, checked to be at sea with open water around it), an instantaneous or continuous
+release, constant or time-varying wind (veer, abrupt shift, gusts), a surface current with an
+inertial and a diurnal tidal oscillation, a diffusivity, an oil type and a footprint method. OpenOil
+runs offline on that spatially uniform forcing (``reader_timeseries``; coastlines from the
+roaring-landmask, so oil can strand). Every hourly output's surface particles become a footprint by
+the scenario's method (``FOOTPRINT_METHODS``).
+
+The forcing the forecaster is given is *not* the forcing that moved the oil: ``given_forcing`` adds
+the errors weather and ocean models make (speed factor, direction bias, autocorrelated noise), and
+both series are stored so results can be reported with exact forcing too.
+
+The held-out split is out of distribution by construction: its release regions and its footprint
+method (alpha shape) are never used for the training scenarios. OpenDrift is the
+optional ``[drift]`` extra; nothing else in the forecaster needs it. The split itself is
+``dataset.split_scenarios``.
 """
 from __future__ import annotations
 
@@ -22,110 +31,169 @@ import contourpy
 import numpy as np
 import shapely
 from scipy.ndimage import gaussian_filter
+from scipy.spatial import Delaunay
 from shapely.geometry import MultiPolygon, Polygon
 
-from .dataset import DEFAULT_STEM, REGIMES, Scenario, save_dataset
-from .features import DWH_LAT, DWH_LON, lonlat_to_plane, to_lonlat
+from .dataset import GULF_STEM, HELD_OUT_METHOD, HELD_OUT_REGIONS, Scenario, save_dataset
+from .features import local_frame
 
-# Polygon method parameters (recorded in the dataset JSON).
-POLYGON_METHOD = {
-    "name": "hdr-kde",
-    "description": ("highest-density region of surface particles: 2-D histogram on the equal-area plane "
-                    "(cell = max(min_cell_m, extent / grid_cells)), Gaussian smoothing of smoothing_cells, "
-                    "filled contour at the density level enclosing mass_fraction of the particles "
-                    "(contourpy), parts under min_part_fraction of the area dropped, simplified to half "
-                    "a cell"),
-    "mass_fraction": 0.9, "grid_cells": 80, "min_cell_m": 150.0, "smoothing_cells": 1.5,
-    "min_part_fraction": 0.02, "surface_depth_m": 0.5, "min_particles": 40,
+# Longitude bands of the land-free northern Gulf (release latitudes 26.0-28.8 N, checked at sea).
+REGIONS = {
+    "west": (-95.5, -93.5), "west-central": (-93.5, -91.5), "central": (-91.5, -89.5),
+    "dwh": (-89.5, -87.5), "east-central": (-87.5, -85.5), "east": (-85.5, -83.5),
 }
-
-# Uniform ranges per regime. Directions are where wind/current blow *towards*, degrees clockwise from
-# north. release: hours of continuous release, one pulse unless "second_pulse" is set.
-REGIME_RANGES = {
-    "initial_release": {"duration_h": (48, 48), "release_h": (48, 48), "wind_speed": (2.0, 7.0),
-                        "current_speed": (0.02, 0.15), "diffusivity": (5.0, 20.0), "wind_veer_deg": (-20, 20)},
-    "steady_growth": {"duration_h": (72, 72), "release_h": (24, 72), "wind_speed": (3.0, 7.0),
-                      "current_speed": (0.05, 0.2), "diffusivity": (5.0, 20.0), "wind_veer_deg": (-15, 15)},
-    "strong_forcing": {"duration_h": (60, 60), "release_h": (12, 36), "wind_speed": (10.0, 16.0),
-                       "current_speed": (0.3, 0.7), "diffusivity": (10.0, 30.0), "wind_veer_deg": (-40, 40)},
-    "multi_lobe": {"duration_h": (72, 72), "release_h": (6, 10), "second_pulse": (18, 30),
-                   "wind_speed": (4.0, 9.0), "current_speed": (0.05, 0.25), "diffusivity": (5.0, 15.0),
-                   "wind_shift_deg": (90, 180), "wind_veer_deg": (0, 0)},
-    "dispersal": {"duration_h": (72, 72), "release_h": (2, 6), "wind_speed": (7.0, 12.0),
-                  "current_speed": (0.05, 0.3), "diffusivity": (30.0, 80.0), "wind_veer_deg": (-30, 30),
-                  "vertical_mixing": True},
-}
+LAT_RANGE = (26.0, 28.8)
+OPEN_WATER_KM = 40.0           # no land within this distance of the release point
+TRAIN_METHODS = ("hdr-kde", "buffer-200", "buffer-400", "buffer-800")
+FOOTPRINT_METHODS = TRAIN_METHODS + (HELD_OUT_METHOD,)
 OIL_TYPES = ("GENERIC LIGHT CRUDE", "GENERIC MEDIUM CRUDE", "SOUTH LOUISIANA", "GENERIC HEAVY CRUDE")
-# Releases start between these dates (the spring of the real spill) at any hour.
-RELEASE_WINDOW = (datetime(2010, 4, 20, tzinfo=timezone.utc), datetime(2010, 5, 31, tzinfo=timezone.utc))
+WIND_PATTERNS = ("constant", "veer", "shift")
+HDR = {"mass_fraction": 0.9, "grid_cells": 80, "min_cell_m": 150.0, "smoothing_cells": 1.5}
+MIN_PART_FRACTION = 0.02       # footprint parts under this fraction of the largest are dropped
+SURFACE_DEPTH_M = 0.5
+MIN_PARTICLES = 40
+# Forcing errors between the truth and what the forecaster is given (1-sigma): the size of the
+# differences between model winds/currents and buoys in the Gulf.
+FORCING_ERRORS = {"wind_speed_factor": 0.15, "wind_dir_deg": 15.0, "wind_noise_ms": 1.0,
+                  "current_speed_factor": 0.3, "current_dir_deg": 25.0, "current_noise_ms": 0.05}
+OMEGA = 7.2921e-5
 
 
-def scenario_params(regime: str, seed: int) -> dict:
-    """Draw one scenario's parameters from its regime's ranges (deterministic in ``seed``)."""
-    if regime not in REGIME_RANGES:
-        raise ValueError(f"unknown regime {regime!r}; known: {', '.join(REGIMES)}")
-    ranges = REGIME_RANGES[regime]
+def is_land(lons: np.ndarray, lats: np.ndarray) -> np.ndarray:
+    """GSHHG land test (roaring-landmask, the mask OpenDrift itself uses; loaded once per process)."""
+    from opendrift.readers.reader_global_landmask import get_mask
+
+    return get_mask().contains_many(np.asarray(lons, float), np.asarray(lats, float))
+
+
+def release_point(rng: np.random.Generator, region: str, land=is_land) -> tuple[float, float]:
+    """A release (lon, lat) in ``region`` with no land within ``OPEN_WATER_KM`` (rejection sampling)."""
+    lo, hi = REGIONS[region]
+    ring = np.radians(np.arange(0, 360, 30))
+    for _ in range(200):
+        lon, lat = float(rng.uniform(lo, hi)), float(rng.uniform(*LAT_RANGE))
+        for r_km in (0.0, OPEN_WATER_KM / 2, OPEN_WATER_KM):
+            lons = lon + r_km / (111.32 * math.cos(math.radians(lat))) * np.sin(ring)
+            lats = lat + r_km / 110.57 * np.cos(ring)
+            if land(lons, lats).any():
+                break
+        else:
+            return round(lon, 4), round(lat, 4)
+    raise RuntimeError(f"no open-water release point found in region {region}")
+
+
+def scenario_params(region: str, seed: int, method: str | None = None, land=is_land) -> dict:
+    """Draw one scenario's parameters (deterministic in ``seed``); ``land`` is the land test."""
+    if region not in REGIONS:
+        raise ValueError(f"unknown region {region!r}; known: {', '.join(REGIONS)}")
     rng = np.random.default_rng(seed)
-
-    def draw(key):
-        lo, hi = ranges[key]
-        return float(rng.uniform(lo, hi))
-
-    span_h = (RELEASE_WINDOW[1] - RELEASE_WINDOW[0]).total_seconds() / 3600
-    release = RELEASE_WINDOW[0] + timedelta(hours=int(rng.integers(0, int(span_h))))
-    duration = int(draw("duration_h"))
-    release_h = round(draw("release_h"), 1)
-    pulses = [[0.0, release_h]]
-    if "second_pulse" in ranges:
-        start = round(draw("second_pulse"), 1)
-        pulses.append([start, start + release_h])
-    wind_dir = float(rng.uniform(0, 360))
+    if method is None:
+        method = HELD_OUT_METHOD if region in HELD_OUT_REGIONS else str(rng.choice(TRAIN_METHODS))
+    lon, lat = release_point(rng, region, land)
+    start = datetime(2012, 1, 1, tzinfo=timezone.utc) + timedelta(hours=int(rng.integers(0, 12 * 365 * 24)))
+    continuous = bool(rng.random() < 0.5)
+    release_h = round(float(rng.uniform(6, 30)), 1) if continuous else 0.0
+    pattern = str(rng.choice(WIND_PATTERNS))
     return {
-        "regime": regime, "seed": seed, "release_time": release.isoformat().replace("+00:00", "Z"),
-        "duration_h": duration, "pulses_h": pulses, "oil_type": str(rng.choice(OIL_TYPES)),
-        "wind_speed": round(draw("wind_speed"), 2), "wind_dir_deg": round(wind_dir, 1),
-        "wind_veer_deg": round(draw("wind_veer_deg"), 1),
-        "wind_shift_deg": round(draw("wind_shift_deg"), 1) if "wind_shift_deg" in ranges else 0.0,
-        "wind_shift_h": pulses[-1][0] - 2.0 if "second_pulse" in ranges else None,
-        "wind_noise": 0.15,
-        "current_speed": round(draw("current_speed"), 3), "current_dir_deg": round(float(rng.uniform(0, 360)), 1),
-        "diffusivity": round(draw("diffusivity"), 1), "sea_temp_c": round(float(rng.uniform(25.0, 29.0)), 2),
-        "vertical_mixing": bool(ranges.get("vertical_mixing", False)),
+        "region": region, "seed": seed, "method": method, "lon": lon, "lat": lat,
+        "release_time": start.isoformat().replace("+00:00", "Z"), "duration_h": 44,
+        "release": "continuous" if continuous else "instantaneous", "release_h": release_h,
+        "release_radius_m": round(float(rng.uniform(200, 1500)), 0),
+        "oil_type": str(rng.choice(OIL_TYPES)), "vertical_mixing": bool(rng.random() < 0.3),
+        "wind_pattern": pattern, "wind_speed": round(float(rng.uniform(1.0, 13.0)), 2),
+        "wind_dir_deg": round(float(rng.uniform(0, 360)), 1),
+        "wind_veer_deg": round(float(rng.uniform(-90, 90)), 1) if pattern == "veer" else 0.0,
+        "wind_shift_h": round(float(rng.uniform(8, 36)), 1) if pattern == "shift" else None,
+        "wind_shift_deg": round(float(rng.choice([-1, 1]) * rng.uniform(60, 180)), 1) if pattern == "shift" else 0.0,
+        "wind_shift_speed": round(float(rng.uniform(1.0, 13.0)), 2) if pattern == "shift" else None,
+        "wind_gust": round(float(rng.uniform(0.0, 0.2)), 3),
+        "current_speed": round(float(rng.uniform(0.02, 0.5)), 3), "current_dir_deg": round(float(rng.uniform(0, 360)), 1),
+        "inertial_amp": round(float(rng.uniform(0.0, 0.2)), 3), "inertial_phase": round(float(rng.uniform(0, 2 * math.pi)), 3),
+        "tidal_amp": round(float(rng.uniform(0.0, 0.05)), 3), "tidal_phase": round(float(rng.uniform(0, 2 * math.pi)), 3),
+        "diffusivity": round(float(rng.uniform(2.0, 50.0)), 1), "sea_temp_c": round(float(rng.uniform(22.0, 30.0)), 2),
     }
 
 
-def forcing_series(params: dict) -> np.ndarray:
-    """Hourly [duration+2, 5] forcing (wind u/v, current u/v, temperature) of a scenario.
+def _towards(speed, deg):
+    """(u, v) of a flow of ``speed`` towards ``deg`` clockwise from north."""
+    rad = np.radians(deg)
+    return speed * np.sin(rad), speed * np.cos(rad)
 
-    Wind turns linearly by ``wind_veer_deg`` over the run, jumps by ``wind_shift_deg`` at
-    ``wind_shift_h`` and carries AR(1) gusts of relative size ``wind_noise``.
+
+def forcing_series(params: dict, hours: int | None = None) -> np.ndarray:
+    """True hourly [hours, 5] forcing (wind u/v, current u/v, sea temperature) from the release hour.
+
+    Wind: constant, veering linearly by ``wind_veer_deg`` over the run, or shifting abruptly at
+    ``wind_shift_h``; AR(1) gusts of relative size ``wind_gust``. Current: a mean flow plus an
+    inertial oscillation (clockwise, at the local inertial period) and a diurnal tide (K1).
     """
-    hours = np.arange(params["duration_h"] + 2, dtype=float)
+    n = params["duration_h"] + 18 if hours is None else hours
+    t = np.arange(n, dtype=float)
     rng = np.random.default_rng(params["seed"] + 7919)
-    direction = params["wind_dir_deg"] + params["wind_veer_deg"] * hours / max(1, params["duration_h"])
-    if params.get("wind_shift_h") is not None:
-        direction = direction + np.where(hours >= params["wind_shift_h"], params["wind_shift_deg"], 0.0)
-    gust = np.zeros_like(hours)
-    for k in range(1, len(hours)):
-        gust[k] = 0.8 * gust[k - 1] + rng.normal(0.0, params["wind_noise"])
-    speed = params["wind_speed"] * np.clip(1.0 + gust, 0.3, None)
-    rad, crad = np.radians(direction), math.radians(params["current_dir_deg"])
-    return np.column_stack([
-        speed * np.sin(rad), speed * np.cos(rad),
-        np.full_like(hours, params["current_speed"] * math.sin(crad)),
-        np.full_like(hours, params["current_speed"] * math.cos(crad)),
-        np.full_like(hours, params["sea_temp_c"]),
-    ])
+    direction = params["wind_dir_deg"] + params["wind_veer_deg"] * t / params["duration_h"]
+    speed = np.full(n, params["wind_speed"])
+    if params["wind_shift_h"] is not None:
+        after = t >= params["wind_shift_h"]
+        direction = np.where(after, direction + params["wind_shift_deg"], direction)
+        speed = np.where(after, params["wind_shift_speed"], speed)
+    gust = np.zeros(n)
+    for k in range(1, n):
+        gust[k] = 0.8 * gust[k - 1] + math.sqrt(1 - 0.64) * rng.normal()
+    speed = np.maximum(0.0, speed * (1 + params["wind_gust"] * gust))
+    wu, wv = _towards(speed, direction)
+    f = 2 * OMEGA * math.sin(math.radians(params["lat"]))
+    phase = f * 3600 * t + params["inertial_phase"]
+    cu, cv = _towards(params["current_speed"], np.full(n, params["current_dir_deg"]))
+    cu = cu + params["inertial_amp"] * np.cos(phase)        # clockwise rotation (northern hemisphere)
+    cv = cv - params["inertial_amp"] * np.sin(phase)
+    tide = 2 * math.pi * t / 23.934 + params["tidal_phase"]
+    cu, cv = cu + params["tidal_amp"] * np.cos(tide), cv + params["tidal_amp"] * np.sin(tide)
+    return np.column_stack([wu, wv, cu, cv, np.full(n, params["sea_temp_c"])])
 
 
-def particles_to_polygon(x_m: np.ndarray, y_m: np.ndarray, method: dict = POLYGON_METHOD):
-    """Highest-density-region polygon (equal-area metres) of one particle cloud, or None if too few."""
-    x_m, y_m = np.asarray(x_m, float), np.asarray(y_m, float)
-    if len(x_m) < method["min_particles"]:
+def given_forcing(true: np.ndarray, seed: int, errors: dict = FORCING_ERRORS) -> np.ndarray:
+    """The forcing a forecaster would be given: the truth with model errors (speed factors, direction
+    biases, autocorrelated noise), drawn from ``seed``."""
+    rng = np.random.default_rng(seed + 104729)
+    out = np.array(true, dtype=float)
+    for cols, factor, dir_deg, noise in (((0, 1), "wind_speed_factor", "wind_dir_deg", "wind_noise_ms"),
+                                         ((2, 3), "current_speed_factor", "current_dir_deg", "current_noise_ms")):
+        scale = math.exp(rng.normal(0, errors[factor]))
+        angle = math.radians(rng.normal(0, errors[dir_deg]))
+        c, s = math.cos(angle), math.sin(angle)
+        u, v = out[:, cols[0]], out[:, cols[1]]
+        u, v = scale * (c * u + s * v), scale * (-s * u + c * v)     # clockwise turn by ``angle``
+        ar = np.zeros((len(out), 2))
+        for k in range(1, len(out)):
+            ar[k] = 0.9 * ar[k - 1] + math.sqrt(1 - 0.81) * rng.normal(size=2)
+        out[:, cols[0]], out[:, cols[1]] = u + errors[noise] * ar[:, 0], v + errors[noise] * ar[:, 1]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# Footprint methods: surface particles (planar metres) -> (Multi)Polygon
+
+def _keep_parts(geometry, simplify_m: float):
+    parts = [p for p in shapely.get_parts(shapely.make_valid(geometry)) if isinstance(p, Polygon) and not p.is_empty]
+    if not parts:
         return None
-    pad = 4 * method["smoothing_cells"]
+    largest = max(p.area for p in parts)
+    kept = [p for p in parts if p.area >= MIN_PART_FRACTION * largest]
+    # simplified to 1 % of the footprint's size at least, so the committed set stays compact
+    tolerance = max(simplify_m, 0.01 * math.sqrt(sum(p.area for p in kept)))
+    merged = shapely.union_all(kept).simplify(tolerance)
+    polys = [p for p in shapely.get_parts(merged) if isinstance(p, Polygon) and not p.is_empty]
+    return MultiPolygon(polys) if polys else None
+
+
+def particles_to_polygon(x_m: np.ndarray, y_m: np.ndarray, method: dict = HDR) -> MultiPolygon | None:
+    """HDR-KDE: the highest-density region holding ``mass_fraction`` of the particles, from a
+    Gaussian-smoothed 2-D histogram (cell = max(min_cell_m, extent / grid_cells)), by contourpy."""
+    if len(x_m) < MIN_PARTICLES:
+        return None
     extent = max(np.ptp(x_m), np.ptp(y_m))
     cell = max(method["min_cell_m"], extent / method["grid_cells"])
+    pad = 4 * method["smoothing_cells"]
     x_edges = np.arange(x_m.min() - pad * cell, x_m.max() + (pad + 1) * cell, cell)
     y_edges = np.arange(y_m.min() - pad * cell, y_m.max() + (pad + 1) * cell, cell)
     counts, _, _ = np.histogram2d(x_m, y_m, bins=[x_edges, y_edges])
@@ -133,116 +201,162 @@ def particles_to_polygon(x_m: np.ndarray, y_m: np.ndarray, method: dict = POLYGO
     ordered = np.sort(density.ravel())[::-1]
     level = ordered[np.searchsorted(np.cumsum(ordered), method["mass_fraction"] * ordered.sum())]
     centres_x, centres_y = (x_edges[:-1] + x_edges[1:]) / 2, (y_edges[:-1] + y_edges[1:]) / 2
-    generator = contourpy.contour_generator(centres_x, centres_y, density.T,
-                                            fill_type=contourpy.FillType.OuterOffset)
+    generator = contourpy.contour_generator(centres_x, centres_y, density.T, fill_type=contourpy.FillType.OuterOffset)
     points, offsets = generator.filled(level, np.inf)
-    parts = []
-    for pts, offs in zip(points, offsets):
-        rings = [pts[offs[i]:offs[i + 1]] for i in range(len(offs) - 1)]
-        poly = shapely.make_valid(Polygon(rings[0], rings[1:]))
-        parts.extend(p for p in shapely.get_parts(poly) if isinstance(p, Polygon))
-    if not parts:
+    polys = [Polygon(pts[offs[0]:offs[1]], [pts[offs[i]:offs[i + 1]] for i in range(1, len(offs) - 1)])
+             for pts, offs in zip(points, offsets)]
+    return _keep_parts(shapely.union_all([shapely.make_valid(p) for p in polys]), cell / 2) if polys else None
+
+
+def buffer_union(x_m: np.ndarray, y_m: np.ndarray, radius_m: float) -> MultiPolygon | None:
+    """Union of discs of ``radius_m`` about every particle."""
+    if len(x_m) < MIN_PARTICLES:
         return None
-    largest = max(p.area for p in parts)
-    parts = [p for p in parts if p.area >= method["min_part_fraction"] * largest]
-    merged = shapely.union_all(parts).simplify(cell / 2)
-    polys = [p for p in shapely.get_parts(merged) if isinstance(p, Polygon) and not p.is_empty]
-    return MultiPolygon(polys) if polys else None
+    return _keep_parts(shapely.union_all(shapely.buffer(shapely.points(x_m, y_m), radius_m, quad_segs=4)), radius_m / 4)
 
 
-def run_scenario(params: dict, particles: int = 2000) -> Scenario:
-    """Run OpenOil for one parameter set and convert each hourly output to a polygon."""
+def alpha_shape(x_m: np.ndarray, y_m: np.ndarray, scale: float = 2.5) -> MultiPolygon | None:
+    """Union of the Delaunay triangles whose circumradius is under ``scale`` x the typical particle
+    spacing (sqrt of hull area per particle)."""
+    if len(x_m) < MIN_PARTICLES:
+        return None
+    xy = np.unique(np.column_stack([x_m, y_m]).round(1), axis=0)
+    if len(xy) < 4:
+        return None
+    tri = Delaunay(xy)
+    a, b, c = (xy[tri.simplices[:, k]] for k in range(3))
+    la, lb, lc = (np.linalg.norm(p - q, axis=1) for p, q in ((b, c), (a, c), (a, b)))
+    area2 = np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    radius = la * lb * lc / np.maximum(2 * area2, 1e-9)
+    spacing = math.sqrt(shapely.MultiPoint(xy).convex_hull.area / len(xy))
+    keep = radius < scale * max(spacing, 50.0)
+    if not keep.any():
+        return None
+    triangles = shapely.polygons(np.stack([a[keep], b[keep], c[keep], a[keep]], axis=1))
+    return _keep_parts(shapely.union_all(triangles), spacing / 4)
+
+
+def footprint(method: str, x_m: np.ndarray, y_m: np.ndarray) -> MultiPolygon | None:
+    if method == "hdr-kde":
+        return particles_to_polygon(x_m, y_m)
+    if method.startswith("buffer-"):
+        return buffer_union(x_m, y_m, float(method.split("-")[1]))
+    if method == "alpha-shape":
+        return alpha_shape(x_m, y_m)
+    raise ValueError(f"unknown footprint method {method!r}; known: {', '.join(FOOTPRINT_METHODS)}")
+
+
+# ---------------------------------------------------------------------------------------------------
+# One scenario
+
+def run_scenario(params: dict, particles: int = 1000) -> Scenario:
+    """Run OpenOil for one parameter set and turn each hourly output into a footprint."""
     from opendrift.models.openoil import OpenOil
     from opendrift.readers.reader_timeseries import Reader as TimeSeriesReader
 
     release = datetime.fromisoformat(params["release_time"].replace("Z", "+00:00"))
     naive_release = release.replace(tzinfo=None)  # OpenDrift works in naive UTC
-    forcing = forcing_series(params)
-    times = [naive_release + timedelta(hours=h) for h in range(len(forcing))]
-    np.random.seed(params["seed"])  # OpenDrift draws from numpy's global generator
+    true = forcing_series(params)
+    times = [naive_release + timedelta(hours=h) for h in range(len(true))]
+    np.random.seed(params["seed"] % 2**32)  # OpenDrift draws from numpy's global generator
     model = OpenOil(loglevel=50, weathering_model="noaa")
     model.add_reader(TimeSeriesReader({
-        "time": times, "x_wind": forcing[:, 0], "y_wind": forcing[:, 1],
-        "x_sea_water_velocity": forcing[:, 2], "y_sea_water_velocity": forcing[:, 3],
-        "sea_water_temperature": forcing[:, 4]}))
+        "time": times, "x_wind": true[:, 0], "y_wind": true[:, 1],
+        "x_sea_water_velocity": true[:, 2], "y_sea_water_velocity": true[:, 3],
+        "sea_water_temperature": true[:, 4]}))
     model.set_config("environment:constant:horizontal_diffusivity", params["diffusivity"])
     model.set_config("drift:vertical_mixing", params["vertical_mixing"])
-    per_pulse = particles // len(params["pulses_h"])
-    for start_h, end_h in params["pulses_h"]:
-        model.seed_elements(lon=DWH_LON, lat=DWH_LAT, z=0.0, radius=300.0, number=per_pulse,
-                            time=[naive_release + timedelta(hours=start_h), naive_release + timedelta(hours=end_h)],
-                            oil_type=params["oil_type"])
-    model.run(duration=timedelta(hours=params["duration_h"]), time_step=900, time_step_output=3600)
+    window = [naive_release, naive_release + timedelta(hours=params["release_h"])]
+    model.seed_elements(lon=params["lon"], lat=params["lat"], z=0.0, radius=params["release_radius_m"],
+                        number=particles, time=window if params["release_h"] > 0 else naive_release,
+                        oil_type=params["oil_type"])
+    model.run(duration=timedelta(hours=params["duration_h"]), time_step=3600, time_step_output=3600)
     result = model.result
     lon, lat = result.lon.values, result.lat.values  # [particle, time]
     status, depth = result.status.values, result.z.values
     out_times = (result.time.values - np.datetime64(naive_release)) / np.timedelta64(1, "h")
-    times_h, geometries, rows = [], [], []
+    to_local, to_lonlat = local_frame(params["lon"], params["lat"])
+    times_h, geometries = [], []
     for k, hour in enumerate(out_times):
-        surface = (status[:, k] == 0) & np.isfinite(lon[:, k]) & (depth[:, k] > -POLYGON_METHOD["surface_depth_m"])
-        x, y = lonlat_to_plane(lon[surface, k], lat[surface, k])
-        polygon = particles_to_polygon(np.asarray(x), np.asarray(y))
+        surface = (status[:, k] == 0) & np.isfinite(lon[:, k]) & (depth[:, k] > -SURFACE_DEPTH_M)
+        x, y = to_local(lon[surface, k], lat[surface, k])
+        polygon = footprint(params["method"], np.asarray(x), np.asarray(y)) if hour >= 1 else None
         if polygon is None:
             if geometries:
                 break  # the slick has gone (weathered, dispersed or stranded): the sequence ends
             continue
         times_h.append(float(hour))
-        geometries.append(to_lonlat(polygon))
-        rows.append(forcing[int(round(hour))])
-    return Scenario(scenario_id=f"{params['regime']}-{params['seed']}", regime=params["regime"],
-                    seed=params["seed"], release_time=release, params=params,
-                    times_h=np.asarray(times_h), geometries=geometries, forcing=np.asarray(rows))
+        geometries.append(shapely.transform(polygon, lambda xy: np.column_stack(to_lonlat(xy[:, 0], xy[:, 1]))))
+    given = given_forcing(true, params["seed"])
+    rows = given[np.asarray(times_h, int)] if times_h else np.empty((0, 5))
+    return Scenario(scenario_id=f"{params['region']}-{params['seed']}", regime=params["release"],
+                    seed=params["seed"], release_time=release, params=params, times_h=np.asarray(times_h),
+                    geometries=geometries, forcing=rows, hourly_given=given, hourly_true=true)
 
 
-def generation_plan(per_regime: int, base_seed: int, regimes=REGIMES) -> list[dict]:
-    """Parameter sets in round-robin regime order, so any prefix covers every regime."""
-    return [scenario_params(regime, base_seed + 100 * r + i)
-            for i in range(per_regime) for r, regime in enumerate(REGIMES) if regime in regimes]
+def generation_plan(count: int, base_seed: int) -> list[dict]:
+    """``count`` parameter sets, regions in round-robin order so any prefix covers every region."""
+    names = list(REGIONS)
+    return [scenario_params(names[i % len(names)], base_seed + i) for i in range(count)]
+
+
+def _run(job):
+    params, particles = job
+    started = clock.monotonic()
+    scenario = run_scenario(params, particles)
+    return scenario, clock.monotonic() - started
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="oilspill-forecaster simulate",
-        description="Generate OpenDrift/OpenOil spill scenarios at the DWH site as hourly polygon sequences.")
-    parser.add_argument("--output", type=Path, default=DEFAULT_STEM,
+        description="Generate OpenDrift/OpenOil spill scenarios over the northern Gulf as hourly footprints.")
+    parser.add_argument("--output", type=Path, default=GULF_STEM,
                         help="dataset path stem; writes STEM.npz and STEM.json (default: the packaged set)")
-    parser.add_argument("--per-regime", type=int, default=12, help="scenarios per regime (default 12)")
-    parser.add_argument("--particles", type=int, default=2000, help="particles per scenario (default 2000)")
-    parser.add_argument("--seed", type=int, default=2010, help="base seed (default 2010)")
-    parser.add_argument("--regimes", default=",".join(REGIMES), help="comma-separated subset of regimes")
-    parser.add_argument("--min-observations", type=int, default=32,
-                        help="drop scenarios with fewer hourly polygons than this (default 32)")
+    parser.add_argument("--count", type=int, default=240, help="scenarios (default 240)")
+    parser.add_argument("--particles", type=int, default=1000, help="particles per scenario (default 1000)")
+    parser.add_argument("--seed", type=int, default=20260, help="base seed (default 20260)")
+    parser.add_argument("--workers", type=int, default=2, help="parallel OpenDrift runs (default 2)")
+    parser.add_argument("--max-minutes", type=float, default=25.0,
+                        help="stop starting new runs after this many minutes; the set keeps what finished (default 25)")
+    parser.add_argument("--min-observations", type=int, default=24,
+                        help="drop scenarios with fewer hourly footprints than this (default 24)")
     args = parser.parse_args(argv)
-    regimes = [r.strip() for r in args.regimes.split(",") if r.strip()]
-    unknown = sorted(set(regimes) - set(REGIMES))
-    if unknown:
-        parser.error(f"unknown regime(s) {', '.join(unknown)}; known: {', '.join(REGIMES)}")
+    if args.count < 1 or args.particles < MIN_PARTICLES or args.workers < 1:
+        parser.error(f"need --count >= 1, --particles >= {MIN_PARTICLES}, --workers >= 1")
     try:
         import opendrift
     except ImportError:
         print("simulate needs OpenDrift: pip install 'oilspill-moos[drift]'", file=sys.stderr)
         return 2
-    plan = generation_plan(args.per_regime, args.seed, regimes)
+    plan = generation_plan(args.count, args.seed)
     generation = {"generator": "oilspill_moos.forecaster.simulate", "opendrift_version": opendrift.__version__,
                   "command": ["simulate", *(argv if argv is not None else sys.argv[1:])],
-                  "base_seed": args.seed, "particles": args.particles, "per_regime": args.per_regime,
-                  "polygon_method": POLYGON_METHOD, "regime_ranges": REGIME_RANGES, "oil_types": list(OIL_TYPES),
+                  "base_seed": args.seed, "particles": args.particles, "count": args.count,
+                  "regions": REGIONS, "held_out_regions": list(HELD_OUT_REGIONS), "held_out_method": HELD_OUT_METHOD,
+                  "train_methods": list(TRAIN_METHODS), "hdr": HDR, "forcing_errors": FORCING_ERRORS,
                   "dropped": []}
     scenarios = []
-    for n, params in enumerate(plan, 1):
-        started = clock.monotonic()
-        scenario = run_scenario(params, args.particles)
-        took = clock.monotonic() - started
-        kept = len(scenario) >= args.min_observations
-        if kept:
-            scenarios.append(scenario)
-        else:
-            generation["dropped"].append({"scenario_id": scenario.scenario_id, "observations": len(scenario)})
-        print(f"[{n}/{len(plan)}] {scenario.scenario_id}: {len(scenario)} hourly polygons, {took:.1f} s"
-              f"{'' if kept else ' (dropped: too short)'}", flush=True)
-        save_dataset(scenarios, args.output, generation)
-    print(json.dumps({"scenarios": len(scenarios), "dropped": len(generation["dropped"]),
-                      "output": str(args.output)}))
+    from multiprocessing import get_context
+
+    started = clock.monotonic()
+    with get_context("fork").Pool(args.workers) as pool:   # forked after the plan: the land mask is shared
+        for n, (scenario, took) in enumerate(pool.imap(_run, [(p, args.particles) for p in plan]), 1):
+            if clock.monotonic() - started > 60 * args.max_minutes:
+                generation["stopped"] = f"after {n - 1} of {len(plan)} runs: --max-minutes {args.max_minutes:g} reached"
+                save_dataset(scenarios, args.output, generation)
+                print(generation["stopped"], flush=True)
+                break
+            kept = len(scenario) >= args.min_observations
+            if kept:
+                scenarios.append(scenario)
+            else:
+                generation["dropped"].append({"scenario_id": scenario.scenario_id, "observations": len(scenario)})
+            print(f"[{n}/{len(plan)}] {scenario.scenario_id} ({scenario.params['method']}): {len(scenario)} hourly "
+                  f"footprints, {took:.1f} s{'' if kept else ' (dropped: too short)'}", flush=True)
+            if n % 10 == 0 or n == len(plan):
+                save_dataset(scenarios, args.output, generation)
+    print(json.dumps({"scenarios": len(scenarios), "dropped": len(generation["dropped"]), "output": str(args.output)}))
     return 0
 
 

@@ -18,7 +18,7 @@ from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
 from moosdb_py.formats import format_number
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygon_spec: demo.py imports them from here)
+from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygon_spec: older callers import them from here)
     Boundary,
     BoundaryError,
     format_forecast,
@@ -31,11 +31,11 @@ from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygo
     polygon_string,
 )
 from oilspill_moos.response.planner import (
+    PLANNERS,
     Plan,
     PlanError,
     choose_forecast,
     containment_region,
-    plan_containment,
     reshare,
     transit_route,
 )
@@ -62,6 +62,7 @@ class Settings:
     """pPathAssign's parameters (see `PathAssign.example_config` for their meaning)."""
 
     standoff: float = 50.0
+    patrol: str = "arcs"          # "arcs": each vessel its own arc, back and forth; "loop": all the whole loop
     coordinate_timeout: float = 30.0
     arrival_timeout: float = 600.0
     node_timeout: float = 20.0
@@ -102,6 +103,7 @@ class Coordinator:
     plan: Plan | None = None
     reported: dict[str, tuple[float, float]] = field(default_factory=dict)
     arrived: set[str] = field(default_factory=set)
+    patrolling: set[str] = field(default_factory=set)  # sent their OIL_PATH_UPDATES for the plan in force
     phase_started: float = 0.0
     coordinate_deadline: float = math.inf
     outbox: list[tuple[str, str | float]] = field(default_factory=list)
@@ -196,10 +198,13 @@ class Coordinator:
                 self.on_reached(name, now)
 
     def on_reached(self, name: str, now: float) -> None:
-        """REACHED_STARTING_POSITION from `name`; the last arrival starts the containment loops."""
+        """REACHED_STARTING_POSITION from `name`: a vessel with an arc of its own starts patrolling it
+        at once; the last arrival starts the phase OIL-PATH (and, in loop mode, everyone's loops)."""
         if self.phase != STARTING_POSITION or not self.plan or name not in self.plan.starts:
             return
         self.arrived.add(name)
+        if self.plan.arcs:
+            self._send_patrol(name)
         if set(self.plan.starts) <= self.arrived:
             self._begin_oil_path(now)
 
@@ -267,12 +272,13 @@ class Coordinator:
 
     def _choose(self, positions: dict[str, tuple[float, float]], age_h: float) -> tuple[float, Plan]:
         """With several horizons of one forecast on offer, aim at the one matching the fleet's arrival."""
+        planner = PLANNERS[self.settings.patrol]
         if len(self.forecasts) == 1:
             ((horizon, boundary),) = self.forecasts.items()
-            return horizon, plan_containment(containment_region(boundary.polygon, self.settings.standoff), positions)
+            return horizon, planner(containment_region(boundary.polygon, self.settings.standoff), positions)
         choice = choose_forecast({h: b.polygon for h, b in self.forecasts.items()}, positions,
                                  {name: self.settings.transit_speed for name in positions},
-                                 self.settings.standoff, age_h)
+                                 self.settings.standoff, age_h, planner)
         return choice.horizon_h, choice.plan
 
     def _post_boundary(self, horizon: float) -> None:
@@ -284,7 +290,7 @@ class Coordinator:
 
     def _assign_starts(self, plan: Plan, now: float) -> None:
         self.plan = plan
-        self.arrived = set()
+        self.arrived, self.patrolling = set(), set()
         self._set_phase(STARTING_POSITION, now)
         self._post("VIEW_POLYGON", polygon_string(plan.region, "standoff", edge_color="orange"))
         for name, start in plan.starts.items():
@@ -298,18 +304,23 @@ class Coordinator:
             vehicle = self.vehicles[name]
             if vehicle.x is not None and math.hypot(vehicle.x - plan.starts[name][0],
                                                     vehicle.y - plan.starts[name][1]) <= self.settings.capture_radius:
-                self.arrived.add(name)
-        if set(plan.starts) <= self.arrived:
-            self._begin_oil_path(now)
+                self.on_reached(name, now)
 
     def _begin_oil_path(self, now: float) -> None:
         self._set_phase(OIL_PATH, now)
-        speed = {"speed": self.settings.loop_speed} if self.settings.loop_speed > 0 else {}
         for name in self.plan.starts:
-            suffix = name.upper()
-            self._post(f"OIL_PATH_UPDATES_{suffix}", points_update(self.plan.loop(name), repeat="forever", **speed))
-            self._post(f"STATION_KEEP_{suffix}", "false")
-            self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
+            self._send_patrol(name)
+
+    def _send_patrol(self, name: str) -> None:
+        """The waypoints `name` repeats for ever: its arc back and forth, or the whole loop."""
+        if name in self.patrolling:
+            return
+        self.patrolling.add(name)
+        speed = {"speed": self.settings.loop_speed} if self.settings.loop_speed > 0 else {}
+        suffix = name.upper()
+        self._post(f"OIL_PATH_UPDATES_{suffix}", points_update(self.plan.loop(name), repeat="forever", **speed))
+        self._post(f"STATION_KEEP_{suffix}", "false")
+        self._post(f"OILSPILL_PHASE_{suffix}", OIL_PATH)
 
     def _reshare(self, now: float) -> None:
         """Spread the loop over whoever is reporting now; they go to new starts, then loop again."""
@@ -389,6 +400,7 @@ PATH_ASSIGN_PARAMS = Params(
     Param("boundary_port", int, 9100, "its port", 0, 65535),
     Param("fleet", str, "", "expected vehicles, abe:ben:cal; empty: whoever reports"),
     Param("standoff", float, 50.0, "metres the loop stays outside the predicted boundary", lo=0),
+    Param("patrol", str, "arcs", "arcs: each vessel its own arc, back and forth; loop: all the whole loop"),
     Param("coordinate_timeout", float, 30.0, "s to wait for every VEHICLE_COORDINATES before planning", lo=0),
     Param("arrival_timeout", float, 600.0, "s after which the loops start even if someone is not at its point", lo=0),
     Param("node_timeout", float, 20.0, "s without NODE_REPORT before a vehicle is dropped", lo=0),
@@ -409,8 +421,8 @@ PATH_ASSIGN_PARAMS = Params(
 class PathAssign(MOOSApp):
     """pPathAssign: receives predicted spill boundaries over TCP (one JSON or pts={} line each,
     answered `OK <seq>` or `ERR <reason>`) and leads the fleet through STATION-KEEPING ->
-    STARTING-POSITION -> OIL-PATH around the stand-off perimeter, re-sharing the loop when a
-    vehicle drops out or comes back."""
+    STARTING-POSITION -> OIL-PATH around the stand-off perimeter (each vessel patrolling its own
+    arc, or all running the whole loop), re-sharing it when a vehicle drops out or comes back."""
 
     default_name = "pPathAssign"
     parameters = PATH_ASSIGN_PARAMS
@@ -424,6 +436,7 @@ ProcessConfig = pPathAssign
   boundary_port       = 9100        // its port
   fleet               =             // expected vehicles, abe:ben:cal; empty: whoever reports
   standoff            = 50          // metres the loop stays outside the predicted boundary
+  patrol              = arcs        // arcs: each vessel its own arc, back and forth; loop: all the whole loop
   coordinate_timeout  = 30          // s to wait for every VEHICLE_COORDINATES before planning
   arrival_timeout     = 600         // s after which the loops start even if someone is not at its point
   node_timeout        = 20          // s without NODE_REPORT before a vehicle is dropped
@@ -477,10 +490,18 @@ PUBLICATIONS:
                 "loop_speed", "min_replan_interval", "forecast_window", "replan_distance", "heartbeat_interval",
                 "status_interval")
         self.coordinator = Coordinator(Settings(forecast_horizons=self._horizons(v["forecast_horizons"]), fleet=fleet,
-                                                operating_area=self._operating_area(), **{k: v[k] for k in same}))
+                                                operating_area=self._operating_area(), patrol=self._patrol(v["patrol"]),
+                                                **{k: v[k] for k in same}))
         lat = self.mission.lat_origin if self.mission is not None else None
         lon = self.mission.long_origin if self.mission is not None else None
         self.grid = LocalGrid(lat, lon) if lat is not None and lon is not None else None
+
+    @staticmethod
+    def _patrol(text: str) -> str:
+        patrol = text.strip().lower()
+        if patrol not in PLANNERS:
+            raise ValueError(f"patrol: {text!r} must be one of {', '.join(PLANNERS)}")
+        return patrol
 
     @staticmethod
     def _horizons(text: str) -> tuple[float, ...]:

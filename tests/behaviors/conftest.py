@@ -1,4 +1,4 @@
-"""Shared fixtures for the helm tests: the mission corpus and a standard course/speed domain."""
+"""Shared fixtures for the helm tests: the mission corpus, the repo's missions and a standard course/speed domain."""
 import sys
 from pathlib import Path
 
@@ -7,15 +7,22 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # makes `helm_sim` importable in importlib mode
 
 from behaviors.domain import IvPDomain, parse_domain_line
-
-CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
+from helpers import CORPUS, shared_missing
+from mission_run import MISSIONS
 
 
 @pytest.fixture
 def corpus() -> Path:
-    if not CORPUS.is_dir():
-        pytest.skip("shared mission corpus not present")
+    """../shared/missions-corpus (the real MOOS-IvP files); the test skips without it."""
+    if reason := shared_missing("missions-corpus"):
+        pytest.skip(reason)
     return CORPUS
+
+
+@pytest.fixture
+def missions() -> Path:
+    """The repo's own missions/ (s1_alpha, station_keep, ...): always present."""
+    return MISSIONS
 
 
 @pytest.fixture

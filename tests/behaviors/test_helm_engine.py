@@ -47,8 +47,8 @@ def test_alpha_survey_visits_every_waypoint_in_order_and_returns(corpus, domain)
     assert deaths == []  # both waypoint behaviours are perpetual
 
 
-def test_park_until_manual_override_false_then_drive(corpus, domain):
-    helm = Helm([read_bhv(corpus / "s1_alpha" / "alpha.bhv")], domain, "alpha")
+def test_park_until_manual_override_false_then_drive(missions, domain):
+    helm = Helm([read_bhv(missions / "s1_alpha" / "alpha.bhv")], domain, "alpha")
     helm.startup(0.0)
     log = []
     end = run(helm, Boat(0, -20), 3, log=log)

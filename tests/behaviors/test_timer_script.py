@@ -6,7 +6,7 @@ import random
 import re
 
 import pytest
-from helpers import SHARED, async_wait_until
+from helpers import CORPUS, async_wait_until, requires_shared
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -143,10 +143,11 @@ def test_timer_script_app_on_the_mission_clock(moosdb_server, tmp_path):
     asyncio.run(scenario())
 
 
+@requires_shared("missions-corpus")
 def test_m2_berta_shoreside_script(tmp_path):
     """The corpus m2_berta shoreside block (nsplug'd with its launch defaults): loiter centres at
     180 s and 360 s from randvars redrawn every round, then the script starts over."""
-    folder = SHARED / "missions-corpus" / "m2_berta"
+    folder = CORPUS / "m2_berta"
     defines = {"WARP": "1", "IP_ADDR": "localhost", "MOOS_PORT": "9000", "PSHARE_PORT": "9200",
                "VNAMES": "abe:ben", "LAUNCH_GUI": "yes"}
     _, expanded = expanded_mission(folder / "meta_shoreside.moos", defines, {}, tmp_path)

@@ -1,13 +1,14 @@
-"""The committed OpenOil scenario set: contents, provenance, round trip, and scenario-level splits."""
+"""The committed scenario sets (the DWH-site set the demos replay, the Gulf set the forecaster is trained
+and scored on): contents, provenance, round trip, observation noise, and the out-of-distribution split."""
 from datetime import datetime, timezone
 
 import numpy as np
 import pytest
 from shapely.geometry import MultiPolygon, Point
 
-from oilspill_moos.forecaster.dataset import (DEFAULT_STEM, REGIMES, Scenario, dataset_metadata, load_dataset,
-                                              save_dataset, split_scenarios)
-from oilspill_moos.forecaster.features import make_windows, to_lonlat
+from oilspill_moos.forecaster.dataset import (DEFAULT_STEM, GULF_STEM, HELD_OUT_METHOD, HELD_OUT_REGIONS, REGIMES,
+                                              Scenario, dataset_metadata, load_dataset, save_dataset, split_scenarios)
+from oilspill_moos.forecaster.features import to_lonlat
 
 
 @pytest.fixture(scope="module")
@@ -37,26 +38,47 @@ def test_generation_parameters_and_seeds_are_recorded(scenarios):
             assert key in info["params"]
 
 
-def test_features_and_windows_from_stored_scenarios(scenarios):
-    sample = [next(s for s in scenarios if s.regime == r) for r in REGIMES]
-    for s in sample:
-        f = s.features()
-        assert f.shape == (len(s), 25) and np.isfinite(f).all()
-        assert f[:, 15] == pytest.approx(s.times_h)  # hours_since_release
-    windows = make_windows([s.sequence() for s in sample], scale="hourly")
-    assert len(windows) > 100 and set(windows.sequence) == set(range(len(sample)))
+@pytest.fixture(scope="module")
+def gulf():
+    return load_dataset(GULF_STEM)
 
 
-def test_split_is_by_scenario_with_every_regime_in_test(scenarios):
-    split = split_scenarios(scenarios, seed=3)
+def test_gulf_set_is_compact_spread_and_records_both_forcings(gulf):
+    size = sum(GULF_STEM.with_suffix(s).stat().st_size for s in (".npz", ".json"))
+    assert size < 5_000_000 and len(gulf) >= 50
+    meta = dataset_metadata(GULF_STEM)
+    assert "opendrift_version" in meta and meta["forcing_errors"]["wind_dir_deg"] > 0
+    assert {s.params["region"] for s in gulf} == set(meta["regions"])
+    assert {s.params["release"] for s in gulf} == {"instantaneous", "continuous"}
+    assert {s.params["wind_pattern"] for s in gulf} == {"constant", "veer", "shift"}
+    for s in gulf:
+        assert s.hourly_given.shape == s.hourly_true.shape and len(s.hourly_given) >= s.times_h[-1] + 15
+        assert not np.allclose(s.hourly_given[:, :4], s.hourly_true[:, :4])     # the forecaster is never told the truth
+        assert np.allclose(s.forcing, s.hourly_given[s.times_h.astype(int)])
+
+
+def test_split_is_out_of_distribution_by_construction(gulf):
+    split = split_scenarios(gulf, seed=3)
     ids = split.ids()
-    assert sorted(sum(ids.values(), [])) == sorted(s.scenario_id for s in scenarios)
-    assert not (set(ids["train"]) & set(ids["test"])) and not (set(ids["val"]) & set(ids["test"]))
-    assert {s.regime for s in split.test} == set(REGIMES) == {s.regime for s in split.train}
-    assert split_scenarios(scenarios, seed=3).ids() == ids
-    assert split_scenarios(scenarios, seed=4).ids() != ids
-    with pytest.raises(ValueError):
-        split_scenarios(scenarios, test_fraction=0.7, val_fraction=0.4)
+    assert sorted(sum(ids.values(), [])) == sorted(s.scenario_id for s in gulf)
+    assert split.test and all(s.params["region"] in HELD_OUT_REGIONS and s.params["method"] == HELD_OUT_METHOD
+                              for s in split.test)
+    for s in split.train + split.val:
+        assert s.params["region"] not in HELD_OUT_REGIONS and s.params["method"] != HELD_OUT_METHOD
+    assert split_scenarios(gulf, seed=3).ids() == ids and split_scenarios(gulf, seed=4).ids() != ids
+
+
+def test_observation_noise_is_deterministic_with_gaps_and_jitter(gulf):
+    s = gulf[0]
+    index, observed = s.observed(seed=1)
+    again, same = s.observed(seed=1)
+    assert np.array_equal(index, again) and all(a.equals(b) for a, b in zip(observed, same))
+    assert index[0] == 0 and index[-1] == len(s) - 1 and all(g.is_valid for g in observed)
+    gaps = [np.diff(g.observed(seed)[0]).max() for g in gulf[:4] for seed in range(2)]
+    assert max(gaps) >= 2                                  # missing hours: irregular intervals
+    assert not observed[0].equals(s.geometries[0])        # boundary jitter
+    clean_index, clean = s.observed(noise=False)
+    assert len(clean_index) == len(s) and clean[3].equals(s.geometries[3])
 
 
 def test_save_and_load_round_trip(tmp_path):

@@ -111,7 +111,7 @@ def test_models_give_one_mean_and_positive_sigma_per_horizon(kind):
 
 
 def test_model_rejects_nan_and_wrong_shapes():
-    model = build_model("ltc-fused", hidden=16, heads=2, unfolds=1).double()
+    model = build_model("ltc-fused", n_features=25, hidden=16, heads=2, unfolds=1).double()
     x = torch.randn(1, 16, 25, dtype=D)
     x[0, 3, 2] = float("nan")
     with pytest.raises(ValueError, match="NaN"):

@@ -14,7 +14,8 @@ from shapely.geometry import Point, box, mapping
 
 from oilspill_moos.forecaster.readers import PolygonFileError, read_polygons, time_from_name
 
-DWH = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "dwh"
+from helpers import DWH, requires_shared
+
 GEOD = pyproj.Geod(ellps="WGS84")
 UTM16 = pyproj.CRS("EPSG:32616")
 
@@ -33,6 +34,7 @@ def write_geojson(path, geometries, crs=None, properties=None):
     return path
 
 
+@requires_shared("data/dwh")
 def test_dwh_may_17_polygons_area_and_time():
     obs = read_polygons(DWH / "dwh-2010-05-17.geojson")
     assert len(obs.polygons) == 11 and obs.source_crs == "EPSG:4326"
@@ -41,12 +43,14 @@ def test_dwh_may_17_polygons_area_and_time():
     assert not obs.repaired and not obs.skipped
 
 
+@requires_shared("data/dwh")
 def test_dwh_may_19_lacks_area_property_and_still_reads():
     obs = read_polygons(DWH / "dwh-2010-05-19.geojson")
     assert len(obs.polygons) == 46
     assert all("area" not in p for p in obs.properties)
 
 
+@requires_shared("data/dwh")
 def test_dwh_may_20_repairs_the_self_intersecting_ring_or_refuses_it():
     obs = read_polygons(DWH / "dwh-2010-05-20.geojson")
     # each part is valid; parts may overlap a little (objectid 236 with 220 and 199), as in the source

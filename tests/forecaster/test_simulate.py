@@ -1,62 +1,82 @@
-"""Scenario generator: parameter draws, forcing, the particle-to-polygon method, and one real OpenOil run."""
+"""Scenario generator: parameter draws, forcing and forcing errors, the footprint methods, one real OpenOil run."""
 import numpy as np
 import pytest
 import shapely
 from shapely.geometry import MultiPolygon
 
-from oilspill_moos.forecaster.dataset import REGIMES
-from oilspill_moos.forecaster.simulate import (forcing_series, generation_plan, main, particles_to_polygon,
-                                               scenario_params)
+from oilspill_moos.forecaster.dataset import HELD_OUT_METHOD, HELD_OUT_REGIONS
+from oilspill_moos.forecaster.simulate import (FOOTPRINT_METHODS, REGIONS, TRAIN_METHODS, footprint, forcing_series,
+                                               given_forcing, main, particles_to_polygon, scenario_params)
 
 
-def test_parameters_are_deterministic_per_seed_and_inside_regime_ranges():
-    assert scenario_params("strong_forcing", 7) == scenario_params("strong_forcing", 7)
-    assert scenario_params("strong_forcing", 7) != scenario_params("strong_forcing", 8)
-    p = scenario_params("strong_forcing", 7)
-    assert 10 <= p["wind_speed"] <= 16 and 0.3 <= p["current_speed"] <= 0.7
-    assert len(scenario_params("multi_lobe", 3)["pulses_h"]) == 2
-    with pytest.raises(ValueError, match="unknown regime"):
-        scenario_params("tsunami", 1)
+def open_sea(lons, lats):
+    """Land test for a world of open water (the generator's real test needs the 60 MB GSHHG mask)."""
+    return np.zeros(np.shape(lons), bool)
 
 
-def test_plan_is_round_robin_so_any_prefix_has_every_regime():
-    plan = generation_plan(3, 100)
-    assert [p["regime"] for p in plan[:5]] == list(REGIMES) and len(plan) == 15
-    assert len({p["seed"] for p in plan}) == 15
+def test_parameters_are_deterministic_per_seed_and_the_split_is_by_construction():
+    p = scenario_params("central", 7, land=open_sea)
+    assert p == scenario_params("central", 7, land=open_sea) != scenario_params("central", 8, land=open_sea)
+    assert REGIONS["central"][0] <= p["lon"] <= REGIONS["central"][1] and p["method"] in TRAIN_METHODS
+    for region in HELD_OUT_REGIONS:
+        assert scenario_params(region, 3, land=open_sea)["method"] == HELD_OUT_METHOD
+    with pytest.raises(ValueError, match="unknown region"):
+        scenario_params("atlantis", 1, land=open_sea)
 
 
-def test_multi_lobe_wind_shift_turns_the_forcing():
-    p = scenario_params("multi_lobe", 11)
+def test_release_points_avoid_land():
+    land_west_of_minus_90 = lambda lons, lats: np.asarray(lons) < -90.0  # noqa: E731
+    for seed in range(5):
+        assert scenario_params("central", seed, land=land_west_of_minus_90)["lon"] > -90.0 + 0.3
+
+
+def test_wind_shift_turns_the_forcing_and_the_inertial_current_rotates():
+    p = next(q for q in (scenario_params("east", s, land=open_sea) for s in range(40)) if q["wind_pattern"] == "shift")
+    p = p | {"wind_gust": 0.0, "inertial_amp": 0.2, "current_speed": 0.0, "tidal_amp": 0.0}
     f = forcing_series(p)
-    before, after = f[int(p["wind_shift_h"]) - 1, :2], f[int(p["wind_shift_h"]) + 1, :2]
-    turn = np.degrees(np.arccos(before @ after / np.linalg.norm(before) / np.linalg.norm(after)))
-    assert abs(turn - min(p["wind_shift_deg"], 360 - p["wind_shift_deg"])) < 25
-    assert f.shape == (p["duration_h"] + 2, 5) and np.allclose(f[:, 4], p["sea_temp_c"])
+    k = int(p["wind_shift_h"])
+    before, after = f[k - 1, :2], f[k + 2, :2]
+    turn = np.degrees(np.arccos(np.clip(before @ after / np.linalg.norm(before) / np.linalg.norm(after), -1, 1)))
+    assert turn == pytest.approx(min(abs(p["wind_shift_deg"]), 360 - abs(p["wind_shift_deg"])), abs=1.0)
+    assert f.shape == (p["duration_h"] + 18, 5)
+    assert np.allclose(np.hypot(f[:, 2], f[:, 3]), 0.2)        # a pure inertial circle
 
 
-def test_particles_to_polygon_holds_most_particles_and_splits_lobes():
+def test_given_forcing_differs_from_the_truth_by_model_sized_errors():
+    p = scenario_params("central", 11, land=open_sea)
+    true = forcing_series(p)
+    errors = [np.abs(given_forcing(true, seed)[:, :4] - true[:, :4]).mean() for seed in range(20)]
+    assert 0.01 < np.mean(errors) < 2.0
+    assert np.array_equal(given_forcing(true, 3), given_forcing(true, 3))
+
+
+def test_every_footprint_method_holds_most_particles_and_splits_lobes():
     rng = np.random.default_rng(0)
     a = rng.normal([0, 0], [2_000, 800], (1500, 2))
     b = rng.normal([20_000, 5_000], 700, (500, 2))
     cloud = np.vstack([a, b])
-    poly = particles_to_polygon(cloud[:, 0], cloud[:, 1])
-    assert isinstance(poly, MultiPolygon) and len(poly.geoms) == 2
-    inside = shapely.covers(poly, shapely.points(cloud)).mean()
-    assert 0.85 <= inside <= 0.97
+    for method in FOOTPRINT_METHODS:
+        poly = footprint(method, cloud[:, 0], cloud[:, 1])
+        assert isinstance(poly, MultiPolygon) and poly.is_valid, method
+        big_two = sorted(poly.geoms, key=lambda g: g.area)[-2:]      # buffer-union may keep a stray particle's disc
+        assert {g.contains(shapely.Point(0, 0)) for g in big_two} == {True, False}, method
+        assert any(g.contains(shapely.Point(20_000, 5_000)) for g in big_two), method
+        inside = shapely.covers(poly, shapely.points(cloud)).mean()
+        assert 0.85 <= inside <= 1.0, method
     assert particles_to_polygon(cloud[:10, 0], cloud[:10, 1]) is None
 
 
-def test_unknown_regime_is_a_usage_error(capsys):
+def test_bad_arguments_are_usage_errors(capsys):
     with pytest.raises(SystemExit):
-        main(["--regimes", "tsunami"])
-    assert "unknown regime" in capsys.readouterr().err
+        main(["--count", "0"])
+    assert "--count" in capsys.readouterr().err
 
 
-def test_one_short_openoil_run_gives_hourly_polygons():
+def test_one_short_openoil_run_gives_hourly_footprints():
     pytest.importorskip("opendrift")
     from oilspill_moos.forecaster.simulate import run_scenario
 
-    params = scenario_params("steady_growth", 5) | {"duration_h": 4, "pulses_h": [[0.0, 1.0]]}
+    params = scenario_params("central", 5, method="hdr-kde", land=open_sea) | {"duration_h": 4, "release_h": 0.0}
     scenario = run_scenario(params, particles=200)
-    assert len(scenario) in (4, 5) and np.all(np.diff(scenario.times_h) == 1.0)
-    assert scenario.features().shape == (len(scenario), 25)
+    assert len(scenario) in (3, 4) and np.all(np.diff(scenario.times_h) == 1.0)
+    assert scenario.hourly_given.shape == scenario.hourly_true.shape == (4 + 18, 5)

@@ -8,10 +8,9 @@ import re
 import shutil
 from pathlib import Path
 
-from helpers import SHARED, async_wait_until
+from helpers import CORPUS, async_wait_until, requires_shared
 from mission_run import headless, latest, prepare
 
-CORPUS = SHARED / "missions-corpus"
 WARP = 10
 S1_ALPHA_APPS = ("pLogger", "uSimMarineV22", "pMarinePIDV22", "pHelmIvP", "pMarineViewer", "uProcessWatch",
                  "pNodeReporter")
@@ -64,6 +63,7 @@ def test_unknown_app_mid_mission_is_named_once_and_the_rest_runs(tmp_path, free_
     assert not left_running(tmp_path)
 
 
+@requires_shared("missions-corpus")
 def test_corpus_s1_alpha_runs_what_we_implement(tmp_path, free_port):
     """The MOOS-IvP s1_alpha mission, unchanged but for its port, warp and the viewer's HTTP port."""
     port, http_port = free_port(), free_port()

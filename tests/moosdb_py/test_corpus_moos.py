@@ -1,11 +1,10 @@
 """Every .moos of the shared corpus parses, and the facts its README lists come out of the reader."""
-from pathlib import Path
-
 import pytest
 
+from helpers import CORPUS, requires_shared
 from moosdb_py.mission import read_mission
 
-CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
+pytestmark = requires_shared("missions-corpus")
 
 # The macro values the missions' launch scripts give nsplug (README table).
 SHORE = dict(WARP="1", IP_ADDR="localhost", MOOS_PORT="9000", PSHARE_PORT="9200")

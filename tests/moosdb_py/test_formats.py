@@ -104,6 +104,7 @@ def test_seglist_forms(text, points):
     ("pts={1,nan:3,4}", "vertex 1 '1,nan' is not x,y"),
     ("format=lawnmower,x=0,y=0", "generated pattern"),
     ("label,foo", "no points"),
+    ("60,-40 : 60,-160 : oops", "vertex 3 'oops' is not x,y"),
     ("x=1:x=2,y=3", "needs x= and y="),
 ])
 def test_seglist_errors_name_the_vertex(text, reason):

@@ -1,6 +1,4 @@
 """nsplug preprocessor: golden outputs from the corpus, the spec's rules and quirks, and errors."""
-from pathlib import Path
-
 import pytest
 from hypothesis import given, settings, strategies as st
 
@@ -8,7 +6,8 @@ from moosdb_py.nsplug import main as nsplug_main
 from moosdb_py.nsplug import parse_defines, preprocess
 from moosdb_py.source import MissionFileError
 
-CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
+from helpers import CORPUS, requires_shared
+
 BASELINE = CORPUS / "minicourse_lab_henry_gilda_baseline"
 VEHICLE = dict(WARP="10", SHORE_IP="localhost", SHORE_PSHARE="9200", IP_ADDR="localhost", VTYPE="kayak")
 
@@ -31,6 +30,7 @@ def body(lines):
     ("meta_vehicle.bhv", "targ_gilda.bhv", dict(VNAME="gilda", START_POS="0,0", LOITER_POS="x=0,y=-75")),
     ("meta_vehicle.bhv", "targ_henry.bhv", dict(VNAME="henry", START_POS="80,0", LOITER_POS="x=125,y=-50")),
 ])
+@requires_shared("missions-corpus")
 def test_matches_real_nsplug_output_byte_for_byte(meta, target, defines, monkeypatch):
     # The targ files were made with WARP=10 (the README table says 1; the committed outputs say 10).
     monkeypatch.chdir(BASELINE)
@@ -125,6 +125,7 @@ some-c
     assert body(expand(tmp_path, text, {"B": "1", "C": "1"})) == ["some-c"]
 
 
+@requires_shared("missions-corpus")
 def test_tagged_include_drops_its_directives(monkeypatch):
     """spec 3.6: both branches of plugs.moos <origin_warp> reach the output, pavlab first."""
     monkeypatch.chdir(CORPUS / "ufld_alpha")

@@ -50,3 +50,15 @@ def test_phase_marks_carry_the_sender_stamp_relative_to_the_observer_start():
     loop = observer.phase_event(OIL_PATH, start)
     assert [observer.events[i]["moos_s"] for i in (first, start, loop)] == [3.0, 9.5, 80.25]
     assert observer.phase_event(STATION_KEEPING, first) is None
+
+
+def test_the_phase_the_db_sends_again_on_a_reconnection_is_no_new_phase():
+    from types import SimpleNamespace
+
+    observer = Observer("127.0.0.1", 1, warp=10.0)
+    observer.t0 = 100.0
+    mail = [SimpleNamespace(key="OILSPILL_PHASE", value=v, time=t, community="shoreside")
+            for v, t in (("STARTING-POSITION", 150.0), ("OIL-PATH", 150.0))]   # both in one tick: both count
+    observer.on_mail(mail)
+    observer.on_mail([SimpleNamespace(key="OILSPILL_PHASE", value="OIL-PATH", time=150.0, community="shoreside")])
+    assert [e["what"] for e in observer.events if e["event"] == "phase"] == ["STARTING-POSITION", "OIL-PATH"]

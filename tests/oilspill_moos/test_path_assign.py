@@ -101,7 +101,7 @@ def run_to_oil_path(c, now=0.0):
 
 
 def test_full_cycle_posts_the_paper_variables_in_order():
-    c = fleet_coordinator()
+    c = fleet_coordinator(patrol="loop")   # the paper's whole loop; arcs: see the tests at the end
     seq = c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
     assert seq == 1 and c.phase == STATION_KEEPING
     assert posts(c, "STATION_KEEP_ALL") == ["true"]
@@ -190,7 +190,7 @@ def test_every_accepted_line_is_posted_as_a_forecast_numbered_by_its_cycle():
 
 
 def test_dropout_in_oil_path_reshares_and_rejoin_reshares_again():
-    c = run_to_oil_path(fleet_coordinator(node_timeout=20))
+    c = run_to_oil_path(fleet_coordinator(node_timeout=20, patrol="loop"))
     for name, x in (("abe", 0), ("ben", 400), ("cal", 200)):
         c.on_node_report(report(name, x, -20), 60.0)
     c.outbox.clear()
@@ -471,7 +471,7 @@ def test_a_late_line_of_the_cycle_in_force_restarts_only_when_it_moves_the_loop(
 
 
 def test_starting_positions_go_round_the_spill():
-    c = Coordinator(Settings(fleet=("abe", "ben"), standoff=20))
+    c = Coordinator(Settings(fleet=("abe", "ben"), standoff=20, patrol="loop"))  # points on opposite sides
     c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
     for name in ("abe", "ben"):   # side by side south of the spill: one start is on the far side
         c.on_coordinates(f"vname={name},x=200,y=-100", 1.0)
@@ -482,3 +482,62 @@ def test_starting_positions_go_round_the_spill():
     for name, route in routes.items():
         assert route[-1] == pytest.approx(c.plan.starts[name], abs=0.1)
         assert not shapely.LineString([(200, -100), *route]).intersects(region.buffer(-0.1))
+
+
+# ---- arcs ----------------------------------------------------------------------------------------
+
+def _arcs_cover(plan):
+    perimeter = plan.region.exterior.length
+    lengths = [length for _, length in plan.arcs.values()]
+    return sum(lengths) == pytest.approx(perimeter) and all(x == pytest.approx(perimeter / len(lengths))
+                                                            for x in lengths)
+
+
+def test_a_vessel_with_an_arc_patrols_it_as_soon_as_it_arrives():
+    c = fleet_coordinator(patrol="arcs")
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    for i, name in enumerate(("abe", "ben", "cal")):
+        c.on_coordinates(f"vname={name},x={-100 * i},y=-50,utc=1", 1.0)
+    assert c.phase == STARTING_POSITION and _arcs_cover(c.plan)
+    c.on_reached("ben", 10.0)
+    patrol = posts(c, "OIL_PATH_UPDATES_BEN")
+    assert len(patrol) == 1 and patrol[0].endswith("#repeat=forever") and posts(c, "OILSPILL_PHASE_BEN")[-1] == OIL_PATH
+    assert c.phase == STARTING_POSITION and not posts(c, "OIL_PATH_UPDATES_ABE")
+    c.on_reached("ben", 11.0)                          # a repeated flag sends nothing again
+    c.on_reached("abe", 12.0)
+    c.on_reached("cal", 13.0)
+    assert c.phase == OIL_PATH
+    assert [len(posts(c, f"OIL_PATH_UPDATES_{n}")) for n in ("ABE", "BEN", "CAL")] == [1, 1, 1]
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(2, 8), st.data())
+def test_arcs_are_rebalanced_when_a_vessel_drops_and_when_it_rejoins(n, data):
+    names = tuple(f"v{i}" for i in range(n))
+    c = Coordinator(Settings(fleet=names, standoff=20, node_timeout=20, patrol="arcs"))
+    c.offer_boundary(Boundary(tuple(SQUARE)), 0.0)
+    where = {name: (data.draw(st.floats(-2000, 2000)), data.draw(st.floats(-2000, 2000))) for name in names}
+    for name in names:
+        c.on_coordinates(f"vname={name},x={where[name][0]},y={where[name][1]}", 1.0)
+    for name in names:
+        c.on_reached(name, 50.0)
+    assert c.phase == OIL_PATH and set(c.plan.arcs) == set(names) and _arcs_cover(c.plan)
+    lost = data.draw(st.sampled_from(names))
+    for name in names:
+        if name != lost:
+            c.on_node_report(report(name, *where[name]), 60.0)
+    c.tick(61.0)
+    c.tick(75.0)                                        # the lost one has been silent for > 20 s
+    assert posts(c, "OILSPILL_DROPPED") == [lost]
+    assert set(c.plan.arcs) == set(names) - {lost} and _arcs_cover(c.plan)
+    c.on_node_report(report(lost, *where[lost]), 80.0)
+    assert posts(c, "OILSPILL_REJOINED") == [lost]
+    assert set(c.plan.arcs) == set(names) and _arcs_cover(c.plan)
+
+
+def test_loop_mode_keeps_the_whole_loop_for_everyone():
+    c = run_to_oil_path(fleet_coordinator(patrol="loop"))
+    assert not c.plan.arcs
+    loop = posts(c, "OIL_PATH_UPDATES_ABE")[0]
+    points = loop.split("#")[0].removeprefix("points=").split(":")
+    assert len(points) >= 4      # the whole square, from abe's point

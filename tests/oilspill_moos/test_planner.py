@@ -1,5 +1,6 @@
 """Planner properties: start points on the stand-off perimeter, optimal bottleneck, even closed loops."""
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from oilspill_moos.response.planner import (
     containment_loop,
     containment_region,
     greedy_assignment,
+    plan_arcs,
     plan_containment,
     reshare,
     transit_route,
@@ -236,3 +238,65 @@ def test_transit_route_never_enters_the_standoff_polygon(vertices, standoff, pos
     assert path.intersection(region.buffer(-1e-2)).length < 1e-6
     # at most the straight line to where it meets the ring, then the shorter way along the ring
     assert path.length <= here.distance(shapely.Point(goal)) + region.exterior.length / 2 + 1e-6
+
+
+# ---- arcs: each vessel its own stretch of the perimeter ------------------------------------------------
+
+def _arc_distance(region, point):
+    return region.exterior.project(shapely.Point(point))
+
+
+@settings(max_examples=40, deadline=None)
+@given(spill_polygons(), st.floats(0, 300), fleets)
+def test_arcs_cover_the_loop_without_overlap_and_patrols_stay_on_their_arc(vertices, standoff, positions):
+    region = containment_region(vertices, standoff)
+    perimeter = region.exterior.length
+    plan = plan_arcs(region, positions, rotations=8, samples=16)
+    assert set(plan.arcs) == set(positions)
+    arcs = sorted(plan.arcs.values())
+    starts = np.array([a for a, _ in arcs])
+    lengths = np.array([length for _, length in arcs])
+    assert lengths.sum() == pytest.approx(perimeter, rel=1e-9)
+    # each arc ends where the next begins, the last wrapping round to the first: no gap, no overlap
+    ends = (starts + lengths) % perimeter
+    assert np.allclose(np.minimum(np.abs(ends - np.roll(starts, -1)),
+                                  perimeter - np.abs(ends - np.roll(starts, -1))), 0, atol=1e-6 * perimeter)
+    for name, (arc_start, length) in plan.arcs.items():
+        tolerance = 1e-6 * max(perimeter, 1.0)
+        entry = (plan.start_arcs[name] - arc_start) % perimeter
+        assert entry <= length + tolerance or entry >= perimeter - tolerance
+        assert region.exterior.distance(shapely.Point(plan.starts[name])) < 1e-6
+        patrol = plan.loop(name)
+        assert np.allclose(patrol[0], plan.starts[name], atol=1e-6)
+        along = (np.array([_arc_distance(region, p) for p in patrol]) - arc_start) % perimeter
+        on_arc = (along <= length + 1e-3) | (along >= perimeter - 1e-3)
+        assert on_arc.all()
+        # out and back: the patrol is twice the arc long
+        closed = np.vstack([patrol, patrol[:1]])
+        if len(positions) > 1:
+            assert np.hypot(*np.diff(closed, axis=0).T).sum() == pytest.approx(2 * length, rel=1e-6, abs=1e-6)
+
+
+@settings(max_examples=30, deadline=None)
+@given(spill_polygons(), fleets)
+def test_arc_transit_never_longer_than_going_to_an_evenly_spaced_point(vertices, positions):
+    region = containment_region(vertices, 50)
+    rotations = 16
+    arcs = plan_arcs(region, positions, rotations=rotations)
+    points = plan_containment(region, positions, rotations=rotations)
+    step = region.exterior.length / len(positions) / rotations
+    # an arc holds the evenly spaced point it starts at, and the rotation search is as fine
+    assert arcs.bottleneck <= points.bottleneck + step + 1e-6
+    for name, start in arcs.starts.items():
+        assert math.hypot(start[0] - positions[name][0], start[1] - positions[name][1]) == pytest.approx(
+            arcs.transit[name], rel=1e-9, abs=1e-9)
+
+
+def test_arcs_go_to_the_nearest_vessel_and_keep_their_mode_when_reshared():
+    region = containment_region([(0, 0), (10000, 0), (10000, 10000), (0, 10000)], 0)
+    fleet = {"abe": (5000, -3000), "ben": (13000, 5000), "cal": (5000, 13000), "deb": (-3000, 5000)}
+    plan = plan_arcs(region, fleet)
+    for name, (x, y) in fleet.items():    # each sits off the middle of one side: 3000 m to its side
+        assert plan.transit[name] == pytest.approx(3000, abs=2.0)
+    assert reshare(plan, {k: v for k, v in fleet.items() if k != "deb"}).arcs.keys() == {"abe", "ben", "cal"}
+    assert not reshare(plan_containment(region, fleet), fleet).arcs

@@ -4,11 +4,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import statistics
-from pathlib import Path
 
 import pytest
 
-from helpers import async_wait_until
+from helpers import CORPUS, async_wait_until, requires_shared
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg
 from moosdb_py.mission import read_mission
@@ -201,13 +200,13 @@ def test_command_line_pages(capsys):
         assert app.default_name in capsys.readouterr().out
 
 
-CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
 CORPUS_MISSIONS = ["s1_alpha/alpha.moos", "minicourse_s2_alpha/alpha.moos", "station-keep-uuv/davis.moos",
                    "minicourse_lab_henry_gilda_baseline/targ_henry.moos",
                    "minicourse_lab_henry_gilda_baseline/targ_gilda.moos"]
 
 
 @pytest.mark.parametrize("name", CORPUS_MISSIONS)
+@requires_shared("missions-corpus")
 def test_real_mission_blocks_are_accepted(name):
     """Every uSimMarine/pMarinePID/pNodeReporter block of the real MOOS-IvP missions reads cleanly."""
     mission = read_mission(CORPUS / name)

@@ -5,12 +5,11 @@ another site cannot open the WebSocket."""
 import asyncio
 import json
 import logging
-from pathlib import Path
 
 import pytest
 import websockets
 
-from helpers import async_wait_until, start_moosdb
+from helpers import CORPUS, async_wait_until, requires_shared, start_moosdb
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import moos_time
 from moosdb_py.mission import read_mission
@@ -125,9 +124,7 @@ def test_websocket_only_from_the_viewers_own_page():
     assert not server.own_page("http://shore.example:8081", "shore.example:8080")
 
 
-CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "missions-corpus"
-
-
+@requires_shared("missions-corpus")
 def test_cpp_viewer_parameters_are_one_summary_line_but_misspelt_keys_warn(tmp_path, caplog):
     mission = read_mission(CORPUS / "s1_alpha" / "alpha.moos")
     with caplog.at_level(logging.WARNING):

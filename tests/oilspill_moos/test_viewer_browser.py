@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from browser import Browser, find_chromium
-from helpers import SHARED, free_port, wait_until
+from helpers import CORPUS, free_port, requires_shared, wait_until
 from mission_run import headless, prepare
 from oilspill_moos.forecaster.push import boundary_line, push_lines
 from oilspill_moos.oilspill_mission import OilspillMission
@@ -35,7 +35,7 @@ ISSUED = time.time()
 FORECAST = [boundary_line(polygon, horizon, time=ISSUED + 3600 * horizon, crs="local", uncertainty_m=band)
             for horizon, band, polygon in ((3, 6, [(-30, 80), (30, 80), (30, 140), (-30, 140)]),
                                            (7, 12, [(-10, 110), (60, 110), (60, 180), (-10, 180)]))]
-S1_ALPHA = SHARED / "missions-corpus" / "s1_alpha"
+S1_ALPHA = CORPUS / "s1_alpha"
 LEGEND = "[...document.querySelectorAll('#forecast-legend li')].map(li => li.querySelector('.horizon').textContent)"
 
 
@@ -214,7 +214,7 @@ def test_the_page_says_mission_ended_and_keeps_the_last_picture(live, browser):
     browser.run(operator())
 
 
-@pytest.mark.skipif(not S1_ALPHA.exists(), reason="needs ../shared/missions-corpus (MOOS-IvP's s1_alpha)")
+@requires_shared("missions-corpus")
 def test_single_vehicle_s1_alpha_shows_its_vehicle_without_the_spill(browser, tmp_path):
     """`pAntler alpha.moos`: pMarineViewer inside the mission, as a MOOS-IvP user runs it."""
     port, http_port = free_port(), free_port()

@@ -1,0 +1,309 @@
+"""From observations to forecasts, for every kind: baselines, the physics prior, and the prior with a
+learned correction. Pure numpy/shapely on a plane in metres (``features.SpillPlane``); torch is only
+touched through the learned model object a caller passes in.
+
+Kinds (``KINDS``):
+
+- ``persistence``: the latest footprint, unchanged;
+- ``constant-velocity``: moved at the centroid velocity fitted over the last ``TREND_H`` hours;
+- ``constant-velocity-growth``: also grown at the fitted rate of area change;
+- ``physics``: the physics prior (``physics.py``): particles moved by current + windage x wind and
+  spread by diffusion, with the published default parameters;
+- ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the physics prior with a learned correction of
+  its drift (residual displacement), its spreading (area ratio) and the spread of its error.
+
+Uncertainty: an ensemble of ``MEMBERS`` members (``envelope`` draws the 50 % and 90 % contours). For the physics and learned kinds a member's forcing
+is the given forcing with errors of the sizes ``FORCING_ERRORS`` (speed factors, direction biases);
+with uniform forcing this shifts the whole footprint, so a member is the central footprint displaced
+by its difference in drift, plus the learned spread for learned kinds. Baselines have no forcing, so
+their members are Gaussian shifts. Every kind's offsets are scaled per horizon by a calibration factor
+fitted on validation data (``calibration.json``) so that the nominal 95 % radius
+(``RADIUS_95 x uncertainty_m``) holds the true centroid 95 % of the time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from shapely import affinity
+from shapely.geometry import MultiPolygon
+from shapely.geometry.base import BaseGeometry
+
+from . import features as F
+from .kinds import BASELINE_KINDS, LEARNED_KINDS
+from .physics import DriftParameters, ForcingTrack, Grid, ParticleFootprint, displacement, drift, drift_velocity, probability
+
+TREND_H = 6.0                  # constant-velocity fits the observations of the last 6 h
+MEMBERS = 32
+RADIUS_95 = math.sqrt(-2 * math.log(0.05))     # 2.448: the 95 % radius of a circular 2-D Gaussian
+# 1-sigma errors of given forcing (wind/ocean model vs truth), as in the training data generation.
+FORCING_ERRORS = {"wind_speed_factor": 0.15, "wind_dir_deg": 15.0, "current_speed_factor": 0.3, "current_dir_deg": 25.0}
+
+
+
+
+@dataclass
+class Observations:
+    """A spill's observations on its plane, times in seconds relative to the latest one."""
+
+    plane: F.SpillPlane
+    geometries: list[MultiPolygon]
+    shapes: list[F.Shape]
+    times_s: np.ndarray
+    environments: np.ndarray          # [T, 4] wind u/v, current u/v at each observation
+    track: ForcingTrack               # observation forcing, then the horizon forcing when given
+
+    def drift_between(self, params: DriftParameters):
+        """``drift_of(i0, i1)`` for ``features.window_features``: mean drift velocity between two
+        observations (the forcing at i0 when i0 == i1)."""
+        def drift_of(i0: int, i1: int) -> np.ndarray:
+            t0, t1 = self.times_s[i0], self.times_s[i1]
+            if t1 <= t0:
+                return drift_velocity(self.track.at(t0), params.windage, params.deflection_deg)
+            return displacement(self.track, t0, t1, params.windage, params.deflection_deg)[0] / (t1 - t0)
+        return drift_of
+
+
+def prepare(geometries, times, environments=None, horizon_forcing=None, plane: F.SpillPlane | None = None) -> Observations:
+    """Observations in time order -> ``Observations``. ``environments``: one ``Environment`` (or
+    4-5 numbers) per observation, or None for no forcing known; ``horizon_forcing``: (time, Environment)
+    pairs after the latest observation (a wind and current forecast), held between and after."""
+    if len(geometries) == 0:
+        raise ValueError("no observations to forecast from")
+    if len(geometries) != len(times):
+        raise ValueError(f"{len(geometries)} geometries but {len(times)} times")
+    times = [F.as_utc(t) for t in times]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError("observation times must strictly increase")
+    cleaned = [F.repaired(g) for g in geometries]
+    if any(g.is_empty for g in cleaned):
+        raise ValueError("an observation holds no polygon")
+    plane = plane or F.SpillPlane.about(cleaned[-1])
+    planar = [plane.to_plane(g) for g in cleaned]
+    shapes = [F.Shape.of(g) for g in planar]
+    latest = times[-1]
+    times_s = np.array([(t - latest).total_seconds() for t in times])
+    envs = np.zeros((len(times), 4)) if environments is None else np.array([_forcing_row(e) for e in environments])
+    if len(envs) != len(times):
+        raise ValueError(f"{len(times)} observations but {len(envs)} forcing rows")
+    track_t, track_v = list(times_s), list(envs)
+    for when, env in sorted(horizon_forcing or (), key=lambda p: F.as_utc(p[0])):
+        t = (F.as_utc(when) - latest).total_seconds()
+        if t > track_t[-1]:
+            track_t.append(t)
+            track_v.append(_forcing_row(env))
+    return Observations(plane, planar, shapes, times_s, envs, ForcingTrack(np.array(track_t), np.array(track_v)))
+
+
+def _forcing_row(env) -> np.ndarray:
+    row = env.as_array()[:4] if hasattr(env, "as_array") else np.asarray(env, float)[:4]
+    if not np.isfinite(row).all():
+        raise ValueError(f"forcing holds a non-finite value: {row}")
+    return row
+
+
+# ---------------------------------------------------------------------------------------------------
+# Baselines
+
+def trend(obs: Observations, window_h: float = TREND_H) -> tuple[np.ndarray, float]:
+    """(centroid velocity m/s, area rate m^2/s) by least squares over the last ``window_h`` hours
+    (zero with a single observation)."""
+    keep = obs.times_s >= -3600 * window_h
+    if keep.sum() < 2:
+        keep[-2:] = True
+    t = obs.times_s[keep]
+    if len(t) < 2:
+        return np.zeros(2), 0.0
+    c = np.array([s.centroid for s in obs.shapes])[keep]
+    a = np.array([s.area for s in obs.shapes])[keep]
+    tc = t - t.mean()
+    denom = float((tc ** 2).sum())
+    return (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / denom, float((tc * (a - a.mean())).sum() / denom)
+
+
+def baseline_geometry(kind: str, obs: Observations, horizon_s: float) -> BaseGeometry:
+    last, shape = obs.geometries[-1], obs.shapes[-1]
+    if kind == "persistence":
+        return last
+    velocity, rate = trend(obs)
+    moved = affinity.translate(last, *(velocity * horizon_s))
+    if kind == "constant-velocity":
+        return moved
+    factor = math.sqrt(max(shape.area + rate * horizon_s, 0.25 * shape.area) / shape.area)
+    return affinity.scale(moved, factor, factor, origin=tuple(shape.centroid + velocity * horizon_s))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Ensemble offsets
+
+def forcing_members(count: int = MEMBERS, seed: int = 1) -> np.ndarray:
+    """[count, 4] (wind speed factor, wind turn rad, current speed factor, current turn rad); member 0
+    is the given forcing."""
+    rng = np.random.default_rng(seed)
+    e = FORCING_ERRORS
+    out = np.column_stack([np.exp(rng.normal(0, e["wind_speed_factor"], count)), np.radians(rng.normal(0, e["wind_dir_deg"], count)),
+                           np.exp(rng.normal(0, e["current_speed_factor"], count)), np.radians(rng.normal(0, e["current_dir_deg"], count))])
+    out[0] = (1.0, 0.0, 1.0, 0.0)
+    return out
+
+
+def _perturbed(track: ForcingTrack, member: np.ndarray) -> ForcingTrack:
+    v = track.values.copy()
+    for k, (i, j) in enumerate(((0, 1), (2, 3))):
+        scale, turn = member[2 * k], member[2 * k + 1]
+        c, s = math.cos(turn), math.sin(turn)
+        u, w = track.values[:, i], track.values[:, j]
+        v[:, i], v[:, j] = scale * (c * u - s * w), scale * (s * u + c * w)
+    return ForcingTrack(track.times_s, v)
+
+
+def forcing_offsets(obs: Observations, horizons_s: np.ndarray, params: DriftParameters,
+                    members: np.ndarray) -> np.ndarray:
+    """[H, M, 2] each member's displacement minus the given forcing's, at each horizon."""
+    central = displacement(obs.track, 0.0, horizons_s, params.windage, params.deflection_deg)
+    return np.stack([displacement(_perturbed(obs.track, m), 0.0, horizons_s, params.windage, params.deflection_deg) - central
+                     for m in members], axis=1)
+
+
+def gaussian_members(count: int = MEMBERS, seed: int = 2) -> np.ndarray:
+    """[count, 2] standard normal draws (member 0 at zero), the same for every forecast."""
+    z = np.random.default_rng(seed).standard_normal((count, 2))
+    z[0] = 0.0
+    return z
+
+
+# ---------------------------------------------------------------------------------------------------
+# One forecast
+
+@dataclass
+class PlanarForecast:
+    horizon_h: float
+    geometry: MultiPolygon
+    contour_50: MultiPolygon
+    contour_90: MultiPolygon
+    uncertainty_m: float
+    centroid: np.ndarray
+    raw_spread_m: float = 0.0       # before calibration, for calibrating
+
+
+@dataclass
+class Correction:
+    """What a learned model adds to the prior per horizon: residual drift (m, plane axes), log area
+    ratio, and its 1-sigma drift error (m, per plane axis)."""
+
+    drift_m: np.ndarray          # [H, 2]
+    log_area: np.ndarray         # [H]
+    sigma_m: np.ndarray          # [H, 2]
+    horizons_h: tuple = F.HORIZONS_H
+
+    def at(self, horizons_h) -> "Correction":
+        """The rows for ``horizons_h`` (each must be one the model was trained for)."""
+        missing = [h for h in horizons_h if h not in self.horizons_h]
+        if missing:
+            raise ValueError(f"the learned kinds forecast only at {self.horizons_h} h, not {missing}")
+        rows = [self.horizons_h.index(h) for h in horizons_h]
+        return Correction(self.drift_m[rows], self.log_area[rows], self.sigma_m[rows], tuple(horizons_h))
+
+
+def correction_from(mean: np.ndarray, sigma: np.ndarray, angle: float) -> Correction:
+    """A ``Correction`` from a model's raw outputs [H, 3] (frame km, km, log area ratio) in the frame
+    turned by ``angle``: the residual drift turned back onto the plane; the drift spread made
+    isotropic (the rms of its two axes), so that it turns with the input too."""
+    turn = F.rotation(angle)
+    drift_m = 1e3 * mean[:, :2] @ turn.T
+    sigma_iso = 1e3 * np.sqrt((sigma[:, 0] ** 2 + sigma[:, 1] ** 2) / 2)
+    return Correction(drift_m=drift_m, log_area=mean[:, 2], sigma_m=np.column_stack([sigma_iso, sigma_iso]))
+
+
+def envelope(mask: np.ndarray, grid, offsets: np.ndarray, level: float) -> MultiPolygon:
+    """The footprint swept over the ``level`` share of ensemble members nearest the ensemble's centre:
+    the region holding the oil with that confidence (cells any of those members covers)."""
+    order = np.argsort(np.linalg.norm(offsets - offsets.mean(axis=0), axis=1))
+    kept = offsets[order[:max(1, math.ceil(level * len(offsets)))]]
+    big, p = probability(mask, grid, kept)
+    return big.contour(p, 0.5 / len(kept))
+
+
+@dataclass
+class Settings:
+    params: DriftParameters = field(default_factory=DriftParameters)
+    spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors
+    members: int = MEMBERS
+
+
+def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations, float, np.ndarray]:
+    """(obs in the spill's own frame, its angle, its origin): origin at the latest centroid, +x along the
+    forcing-predicted drift at the latest observation. Particles, grids and random draws are laid out
+    in this frame, so a translated or rotated input gives the same forecast, translated and rotated."""
+    origin = np.asarray(obs.shapes[-1].centroid, float)
+    angle = F.frame_angle(obs.drift_between(params)(len(obs.shapes) - 1, len(obs.shapes) - 1))
+    turn = F.rotation(-angle)
+    degrees = -math.degrees(angle)
+
+    def to_frame(g):
+        return affinity.rotate(affinity.translate(g, -origin[0], -origin[1]), degrees, origin=(0, 0))
+
+    shapes = [F.Shape(s.area, turn @ (s.centroid - origin), turn @ s.cov @ turn.T, s.perimeter, s.n_parts, s.largest_fraction)
+              for s in obs.shapes]
+    envs = obs.environments.copy()
+    envs[:, :2], envs[:, 2:4] = envs[:, :2] @ turn.T, envs[:, 2:4] @ turn.T
+    return (Observations(obs.plane, [to_frame(g) for g in obs.geometries], shapes, obs.times_s, envs,
+                         obs.track.rotated(-angle)), angle, origin)
+
+
+def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
+                   correction: Correction | None = None, contours: bool = True) -> list[PlanarForecast]:
+    """Forecasts on ``obs.plane`` for each horizon (computed in the spill's own frame, ``canonical``)."""
+    frame, angle, origin = canonical(obs, settings.params)
+    if correction is not None:
+        correction = correction.at(tuple(horizons_h))
+        turn = F.rotation(-angle)
+        correction = Correction(correction.drift_m @ turn.T, correction.log_area, correction.sigma_m, correction.horizons_h)
+
+    def back(g):
+        return affinity.translate(affinity.rotate(g, math.degrees(angle), origin=(0, 0)), origin[0], origin[1])
+
+    return [PlanarForecast(f.horizon_h, back(f.geometry), back(f.contour_50), back(f.contour_90), f.uncertainty_m,
+                           F.rotation(angle) @ f.centroid + origin, f.raw_spread_m)
+            for f in _forecast_frame(kind, frame, horizons_h, settings, correction, contours)]
+
+
+def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings,
+                    correction: Correction | None, contours: bool) -> list[PlanarForecast]:
+    horizons_s = 3600.0 * np.asarray(horizons_h, float)
+    scale = np.asarray(settings.spread_scale.get(kind, np.ones(len(horizons_s))), float)
+    z = gaussian_members(settings.members)
+    if kind in BASELINE_KINDS and kind != "physics":
+        geometries = [baseline_geometry(kind, obs, h) for h in horizons_s]
+        masks = None
+        raw = np.broadcast_to(z, (len(horizons_s), *z.shape))
+    else:
+        moved, start = drift(obs.geometries[-1], 0.0, horizons_s, obs.track, settings.params)
+        raw = forcing_offsets(obs, horizons_s, settings.params, forcing_members(settings.members))
+        if correction is not None:
+            for j, p in enumerate(moved):
+                m = p.mean(axis=0)
+                moved[j] = m + math.exp(0.5 * correction.log_area[j]) * (p - m) + correction.drift_m[j]
+            raw = raw + z[None] * correction.sigma_m[:, None, :]
+        method = ParticleFootprint(obs.geometries[-1], start)
+        drawn = [method.draw(p) for p in moved]
+        geometries = [d[2] for d in drawn]
+        masks = [(d[0], d[1]) for d in drawn]
+    out = []
+    for j, h in enumerate(horizons_h):
+        offsets = raw[j] * scale[j]
+        spread = float(np.sqrt((raw[j] ** 2).sum(axis=1).mean() / 2))
+        geometry = geometries[j]
+        c50 = c90 = geometry
+        if contours:
+            if masks is None:
+                grid = Grid.covering(np.array(geometry.bounds).reshape(2, 2), math.sqrt(geometry.area) / 24, 0.0)
+                mask = grid.rasterise(geometry)
+            else:
+                grid, mask = masks[j]
+            c50, c90 = (envelope(mask, grid, offsets, level) for level in (0.5, 0.9))
+        _, centroid, _ = F.second_moments(geometry)
+        out.append(PlanarForecast(float(h), geometry, c50, c90, spread * scale[j], centroid, spread))
+    return out
+

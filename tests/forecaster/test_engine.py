@@ -1,0 +1,104 @@
+"""Forecast kinds on the plane: baselines on known tracks, and the invariance property — translate and
+rotate the whole input (polygons with their forcing) and the forecast moves with it."""
+import math
+
+import numpy as np
+import pytest
+import shapely
+import torch
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from shapely import affinity
+from shapely.geometry import MultiPolygon, Point
+
+from oilspill_moos.forecaster import engine as E
+from oilspill_moos.forecaster import features as F
+from oilspill_moos.forecaster.models import Corrector, build_model
+from oilspill_moos.forecaster.physics import ForcingTrack
+
+
+def planar_observations(geometries, times_h, forcing, ahead=()):
+    """Observations straight on the plane: geometries (metres), hours, [T, 4] forcing, and forcing rows
+    for each hour after the latest observation."""
+    times_s = 3600.0 * (np.asarray(times_h, float) - times_h[-1])
+    rows = np.asarray(forcing, float)
+    ahead = np.asarray(ahead, float).reshape(-1, 4)
+    track = ForcingTrack(np.concatenate([times_s, 3600.0 * np.arange(1, len(ahead) + 1)]), np.vstack([rows, ahead]))
+    geoms = [MultiPolygon(F.polygon_parts(g)) for g in geometries]
+    return E.Observations(None, geoms, [F.Shape.of(g) for g in geoms], times_s, rows, track)
+
+
+def iou(a, b):
+    return shapely.intersection(a, b).area / shapely.union(a, b).area
+
+
+def test_persistence_and_constant_velocity_on_a_linear_track():
+    slick = Point(0, 0).buffer(2_000, quad_segs=32)
+    geoms = [affinity.scale(affinity.translate(slick, 400.0 * h, -300.0 * h), 1 + 0.05 * h, 1 + 0.05 * h) for h in range(5)]
+    obs = planar_observations(geoms, np.arange(5.0), np.zeros((5, 4)))
+    last = F.Shape.of(geoms[-1])
+    assert E.baseline_geometry("persistence", obs, 3 * 3600.0).equals(obs.geometries[-1])
+    moved = F.Shape.of(E.baseline_geometry("constant-velocity", obs, 10 * 3600.0))
+    assert np.allclose(moved.centroid - last.centroid, [4_000.0, -3_000.0], atol=1.0)
+    assert moved.area == pytest.approx(last.area)
+    grown = F.Shape.of(E.baseline_geometry("constant-velocity-growth", obs, 10 * 3600.0))
+    velocity, rate = E.trend(obs)
+    assert grown.area == pytest.approx(last.area + rate * 36_000.0, rel=1e-6) and rate > 0
+    assert np.allclose(grown.centroid, moved.centroid, atol=1.0)
+
+
+def random_corrector(seed: int = 0) -> Corrector:
+    """A real (untrained, randomly initialised) LTC with unit scalers: its outputs are arbitrary, so the
+    invariance cannot come from the model saying nothing."""
+    torch.manual_seed(seed)
+    model = build_model("ltc-fused", n_features=len(F.FEATURE_NAMES))
+    scaler = F.FeatureScaler(np.zeros(len(F.FEATURE_NAMES)), np.ones(len(F.FEATURE_NAMES)))
+    extra = {"feature_scaler": scaler.to_dict(), "horizons_h": list(F.HORIZONS_H),
+             "target_scaler": {"mean": np.zeros((4, 3)).tolist(), "std": np.full((4, 3), 2.0).tolist()}}
+    return Corrector(model, extra)
+
+
+def case(shift_x, shift_y, angle_deg):
+    """A two-lobed spill drifting under wind and current, then moved by (shift) and turned by angle."""
+    lobes = MultiPolygon([Point(0, 0).buffer(2_500, quad_segs=16), Point(9_000, 2_000).buffer(1_200, quad_segs=16)])
+    geoms = [affinity.translate(affinity.scale(lobes, 1 + 0.03 * h, 1 + 0.02 * h, origin=(0, 0)), 700.0 * h, 250.0 * h)
+             for h in range(6)]
+    forcing = np.array([[6.0 + 0.2 * h, 2.0, 0.15, 0.05 * h] for h in range(6)])
+    ahead = [[3.0, -4.0, 0.1, 0.2]] * 5
+    a = math.radians(angle_deg)
+    turn = F.rotation(a)
+
+    def move(g):
+        return affinity.translate(affinity.rotate(g, angle_deg, origin=(0, 0)), shift_x, shift_y)
+
+    def turned(rows):
+        rows = np.atleast_2d(np.asarray(rows, float)).copy()
+        rows[:, :2], rows[:, 2:4] = rows[:, :2] @ turn.T, rows[:, 2:4] @ turn.T
+        return rows
+
+    original = planar_observations(geoms, np.array([0, 1, 2, 4, 5, 6.0]), forcing, ahead)
+    transformed = planar_observations([move(g) for g in geoms], np.array([0, 1, 2, 4, 5, 6.0]), turned(forcing),
+                                      turned(ahead))
+    return original, transformed, move
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(shift_x=st.floats(-2e5, 2e5), shift_y=st.floats(-2e5, 2e5), angle=st.floats(0, 360))
+def test_forecast_moves_with_a_translated_and_rotated_input(shift_x, shift_y, angle):
+    original, transformed, move = case(shift_x, shift_y, angle)
+    corrector = random_corrector()
+    params = E.DriftParameters()
+    x0, _, _ = F.window_features(original.shapes, original.times_s, original.environments, original.drift_between(params))
+    x1, _, _ = F.window_features(transformed.shapes, transformed.times_s, transformed.environments,
+                                 transformed.drift_between(params))
+    assert np.allclose(x0, x1, atol=1e-6)                       # nothing in the features says where
+    for kind in ("physics", "constant-velocity-growth", "ltc-fused"):
+        corrections = [corrector.correction(o, params) if kind == "ltc-fused" else None for o in (original, transformed)]
+        a = E.forecast_plane(kind, original, (3, 15), E.Settings(), corrections[0], contours=False)
+        b = E.forecast_plane(kind, transformed, (3, 15), E.Settings(), corrections[1], contours=False)
+        for fa, fb in zip(a, b):
+            expected = move(fa.geometry)
+            size = math.sqrt(fa.geometry.area)
+            assert iou(expected, fb.geometry) > 0.85, kind
+            assert np.linalg.norm(np.asarray(expected.centroid.coords[0]) - fb.centroid) < 0.05 * size, kind
+            assert fb.uncertainty_m == pytest.approx(fa.uncertainty_m, rel=0.02), kind
