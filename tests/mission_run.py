@@ -1,5 +1,6 @@
 """Running a mission headless for end-to-end tests: a copy with its own port and time warp, launched
-with pAntler, watched by a MOOS client, deployed with uPokeDB, and judged from pLogger's alog."""
+with pAntler, watched by a MOOS client, deployed with uPokeDB, and judged from pLogger's alog; and
+missions/oilspill itself, started and deployed, or its vehicle helm driven by hand."""
 from __future__ import annotations
 
 import asyncio
@@ -9,10 +10,17 @@ import re
 import shutil
 import signal
 import sys
+import threading
 from pathlib import Path
 
+from behaviors.bhv_file import parse_bhv
+from behaviors.domain import IvPDomain, parse_domain_line
+from behaviors.helm import Helm
 from moosdb_py.alog import Alog, read_alog
 from moosdb_py.client import MOOSClient
+from moosdb_py.nsplug import preprocess
+from helpers import wait_until
+from oilspill_moos.oilspill_mission import Observer, OilspillMission
 
 BIN = Path(sys.executable).parent
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
@@ -109,3 +117,65 @@ def nav_track(alog: Alog) -> list[tuple[float, float, float]]:
 
 def distance(point: tuple[float, float], x: float, y: float) -> float:
     return math.hypot(x - point[0], y - point[1])
+
+
+@contextlib.contextmanager
+def deployed(mission: OilspillMission, clients: tuple[MOOSClient, ...] = (), timeout: float = 40.0):
+    """missions/oilspill started, an Observer on its shoreside and `clients` running in a thread of
+    their own, every vehicle reporting and deployed; yields (observer, loop). On exit the clients
+    close and the mission stops."""
+    mission.start()
+    loop = asyncio.new_event_loop()
+    observer = Observer("127.0.0.1", mission.shoreside.moos_port, mission.warp)
+    everyone = (observer.client, *clients)
+
+    async def run_clients():
+        await asyncio.gather(*(client.run() for client in everyone))
+
+    thread = threading.Thread(target=loop.run_until_complete, args=(run_clients(),), daemon=True)
+    thread.start()
+    try:
+        wait_until(lambda: mission.dead() or observer.vehicles_seen() >= set(mission.fleet), timeout=timeout)
+        assert not mission.dead(), f"communities stopped: {mission.dead()}"
+        asyncio.run_coroutine_threadsafe(observer.deploy(mission.fleet, timeout, mission), loop).result(timeout + 5)
+        yield observer, loop
+    finally:
+        for client in everyone:
+            loop.call_soon_threadsafe(client.close)
+        thread.join(timeout=5)
+        mission.stop()
+
+
+class VehicleHelm:
+    """meta_vehicle.bhv expanded with nsplug, driven by hand: mail in, posts out, position set directly."""
+
+    def __init__(self, tmp_path, **defines):
+        target = tmp_path / "targ_abe.bhv"
+        lines = preprocess(MISSIONS / "oilspill" / "meta_vehicle.bhv", {"VNAME": "abe", "START_POS": "0,0", **defines})
+        target.write_text("".join(line.text + "\n" for line in lines))
+        domain = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
+        self.helm = Helm([parse_bhv(preprocess(target), target)], domain, "abe", active_start=True)
+        self.now = 0.0
+        self.posts = self.helm.startup(self.now)
+        self.at(0.0, 0.0)
+
+    def at(self, x, y):
+        for key, value in (("NAV_X", x), ("NAV_Y", y), ("NAV_HEADING", 0.0), ("NAV_SPEED", 0.0)):
+            self.helm.on_mail(key, value, self.now)
+
+    def mail(self, **values):
+        for key, value in values.items():
+            self.helm.on_mail(key, value, self.now)
+
+    def run(self, seconds):
+        for _ in range(int(seconds * 4)):
+            self.now += 0.25
+            posts = self.helm.iterate(self.now)
+            self.posts += posts
+            for key, value, _ in posts:  # the helm's own flags come back as mail, as through the MOOSDB
+                if key in ("STATION_KEEP", "COMMS_LOST", "DEPLOY"):
+                    self.helm.on_mail(key, value, self.now)
+        return self
+
+    def last(self, key):
+        return next((value for k, value, _ in reversed(self.posts) if k == key), None)

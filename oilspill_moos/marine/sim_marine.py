@@ -1,4 +1,5 @@
-"""uSimMarine: the 3-DOF kinematic boat model of uSimMarineV22 and its MOOS app.
+"""uSimMarine: the 3-DOF kinematic boat model of uSimMarineV22 and its MOOS app, and the
+deprecated uSimMarine as a variant of it (`SimMarineDeprecated`).
 
 The model (`MarineModel`) is pure: rudder/thrust in, state out, time step given.
 It reproduces the reference simulator's arithmetic (field-apps.md section 1),
@@ -121,6 +122,8 @@ class SimParams:
     max_depth_rate_speed: float = 2.0
     water_depth: float = 0.0
     sim_pause: bool = False
+    turn_speed_map: bool = True   # V22: the turn rate grows with speed, full at TURN_RATE_FULL_SPEED
+    nav_interval: int = 2         # iterations between NAV_* posts (V22: every second one)
 
     @classmethod
     def from_config(cls, cfg: ConfigLike) -> "SimParams":
@@ -229,9 +232,10 @@ class MarineModel:
         elif v1 < v0 and p.max_deceleration > 0.0:
             v1 = max(v1, v0 - p.max_deceleration * dt)
 
-        # 2. heading: the turn rate grows with speed and scales with thrust/50
+        # 2. heading: the turn rate grows with speed (V22) and scales with thrust/50
         if v1 > 0.0:
-            rate = min(100.0, max(0.0, self.turn_rate * min(v1 / TURN_RATE_FULL_SPEED, 1.0)))
+            scale = min(v1 / TURN_RATE_FULL_SPEED, 1.0) if p.turn_speed_map else 1.0
+            rate = min(100.0, max(0.0, self.turn_rate * scale))
             turn = rudder * (rate / 100.0) * dt * (1.0 + (self.thrust - 50.0) / 50.0)
         else:
             turn = 0.0
@@ -295,6 +299,7 @@ class SimMarine(MOOSApp):
 
     default_name = "uSimMarine"
     parameters = SIM_PARAMS
+    variant: dict = {}   # SimParams fields that set this app's model apart
     example_config = """\
 ProcessConfig = uSimMarineV22
 {
@@ -339,7 +344,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
 """
 
     def on_startup(self) -> None:
-        self.params = read_params(self.config, SimParams.from_config)
+        self.params = replace(read_params(self.config, SimParams.from_config), **self.variant)
         self.model = MarineModel(self.params)
         self.water_depth = self.params.water_depth
         self.grid = mission_grid(self.mission)
@@ -405,7 +410,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
             self.last_result = self.model.step(now - self.last_step_time)
         self.last_step_time = now
         self.iteration += 1
-        if self.iteration % 2 == 0:
+        if self.iteration % self.params.nav_interval == 0:
             self._post_nav(now)
 
     def _post_nav(self, now: float) -> None:
@@ -439,4 +444,24 @@ SIM_INPUTS = ("DESIRED_RUDDER", "DESIRED_THRUST", "DESIRED_ELEVATOR", "DRIFT_X",
               "CURRENT_Y", "DRIFT_VECTOR", "DRIFT_VECTOR_ADD", "DRIFT_VECTOR_MULT", "ROTATE_SPEED",
               "BUOYANCY_RATE", "WATER_DEPTH", "USM_TURN_RATE", "USM_SIM_PAUSED", "USM_RESET")
 
+
+class SimMarineDeprecated(SimMarine):
+    """uSimMarine, the simulator MOOS-IvP deprecated for uSimMarineV22: the same model, except that
+    it turns at the full turn_rate at any speed (no turn-rate map), always loses 0.85 of its speed at
+    full rudder (turn_spd_loss is V22's) and posts NAV_* on every iteration. Older missions that
+    run `uSimMarine` fly as they did in C++.
+    """
+
+    variant = {"turn_speed_map": False, "turn_spd_loss": 0.85, "nav_interval": 1}
+    example_config = SimMarine.example_config.replace("ProcessConfig = uSimMarineV22", "ProcessConfig = uSimMarine")
+    interface = SimMarine.interface.replace("(every second iteration,", "(every iteration,")
+
+    def on_startup(self) -> None:
+        super().on_startup()
+        if self.config.get("turn_spd_loss") is not None:
+            log.warning("%s: turn_spd_loss is uSimMarineV22's; uSimMarine always loses 0.85 of its speed at "
+                        "full rudder", self.name)
+
+
 main = SimMarine.main
+deprecated_main = SimMarineDeprecated.main

@@ -10,12 +10,12 @@ Fixed scenario and sensor seed.
 """
 import asyncio
 import json
-import threading
 
 import pytest
 from helpers import wait_until
+from mission_run import deployed
 
-from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission
+from oilspill_moos.oilspill_mission import ORIGIN, OilspillMission
 from oilspill_moos.feedback_demo import (MAP_SCALE, SCENARIO, STANDOFF, FusionWatch, boundary_line, feedback_defines,
                                          iou, mission_polygon, truth_at)
 from oilspill_moos.forecaster import operational
@@ -47,20 +47,8 @@ def test_observations_reach_the_shore_and_correct_the_forecast(tmp_path, forecas
     feedback = tmp_path / "feedback.jsonl"
     mission = OilspillMission(tmp_path / "run", vehicles=3, warp=WARP, standoff=STANDOFF, node_timeout=30.0,
                               extra=feedback_defines(feedback, start_hour=21))
-    mission.start()
-    loop = asyncio.new_event_loop()
-    observer = Observer("127.0.0.1", mission.shoreside.moos_port, WARP)
     watch = FusionWatch(mission.shoreside.moos_port, WARP)
-
-    async def clients():
-        await asyncio.gather(observer.client.run(), watch.client.run())
-
-    thread = threading.Thread(target=loop.run_until_complete, args=(clients(),), daemon=True)
-    thread.start()
-    try:
-        wait_until(lambda: mission.dead() or observer.vehicles_seen() >= set(mission.fleet), timeout=TIMEOUT)
-        assert not mission.dead(), f"communities stopped: {mission.dead()}"
-        asyncio.run_coroutine_threadsafe(observer.deploy(mission.fleet, TIMEOUT, mission), loop).result(TIMEOUT + 5)
+    with deployed(mission, (watch.client,), TIMEOUT) as (observer, _):
         spill = mission_polygon(forecast, ScenarioMap(LocalGrid(*ORIGIN), MAP_SCALE))
         assert push_lines([boundary_line(spill)], port=mission.boundary_port) == [1]
         wait_until(lambda: observer.phase_count.get(OIL_PATH, 0) >= 1, timeout=TIMEOUT)
@@ -69,11 +57,6 @@ def test_observations_reach_the_shore_and_correct_the_forecast(tmp_path, forecas
         # each vehicle covers a third of the loop at 2 m/s, and a little more
         wait_until(lambda: observer.moos_now - looping_since > perimeter / 3 / 2.0 + 10, timeout=TIMEOUT)
         wait_until(lambda: watch.skills, timeout=TIMEOUT)
-    finally:
-        loop.call_soon_threadsafe(observer.client.close)
-        loop.call_soon_threadsafe(watch.client.close)
-        thread.join(timeout=5)
-        mission.stop()
 
     assert {parse_report(s)["cycle"] for s in watch.skills} == {"oilspill_1"}
     assert len(feedback.read_text().splitlines()) >= 30 and not watch.warnings, watch.warnings[:3]

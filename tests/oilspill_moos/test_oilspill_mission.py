@@ -103,46 +103,7 @@ def test_vehicle_killed_in_oil_path_is_dropped_reshared_and_rejoins(running):
 
 # ---- the vehicle behaviour file on the helm engine alone (no processes) ----------------------
 
-from behaviors.bhv_file import parse_bhv  # noqa: E402
-from behaviors.domain import IvPDomain, parse_domain_line  # noqa: E402
-from behaviors.helm import Helm  # noqa: E402
-from moosdb_py.nsplug import preprocess  # noqa: E402
-from oilspill_moos.oilspill_mission import MISSION_DIR  # noqa: E402
-
-
-class VehicleHelm:
-    """meta_vehicle.bhv expanded with nsplug, driven by hand: mail in, posts out, position set directly."""
-
-    def __init__(self, tmp_path, **defines):
-        target = tmp_path / "targ_abe.bhv"
-        lines = preprocess(MISSION_DIR / "meta_vehicle.bhv", {"VNAME": "abe", "START_POS": "0,0", **defines})
-        target.write_text("".join(line.text + "\n" for line in lines))
-        domain = IvPDomain(vars=[parse_domain_line("course:0:359:360"), parse_domain_line("speed:0:4:41")])
-        self.helm = Helm([parse_bhv(preprocess(target), target)], domain, "abe", active_start=True)
-        self.now = 0.0
-        self.posts = self.helm.startup(self.now)
-        self.at(0.0, 0.0)
-
-    def at(self, x, y):
-        for key, value in (("NAV_X", x), ("NAV_Y", y), ("NAV_HEADING", 0.0), ("NAV_SPEED", 0.0)):
-            self.helm.on_mail(key, value, self.now)
-
-    def mail(self, **values):
-        for key, value in values.items():
-            self.helm.on_mail(key, value, self.now)
-
-    def run(self, seconds):
-        for _ in range(int(seconds * 4)):
-            self.now += 0.25
-            posts = self.helm.iterate(self.now)
-            self.posts += posts
-            for key, value, _ in posts:  # the helm's own flags come back as mail, as through the MOOSDB
-                if key in ("STATION_KEEP", "COMMS_LOST", "DEPLOY"):
-                    self.helm.on_mail(key, value, self.now)
-        return self
-
-    def last(self, key):
-        return next((value for k, value, _ in reversed(self.posts) if k == key), None)
+from mission_run import VehicleHelm  # noqa: E402
 
 
 def test_vehicle_modes_follow_the_shore_and_the_arrival_flag(tmp_path):
