@@ -1,8 +1,8 @@
 """The IvP behaviour base: general parameters, flags, conditions, duration, updates and macros.
 
 The helm (helm.py) drives the life cycle; a behaviour type only adds its own parameters
-(`set_param`) and its objective function (`on_run_state`). Spec: ivp-helm.md §2-3,
-mission-files.md §2.5.
+(`set_param`) and its objective function (`on_run_state`). Spec: docs/spec/ivp-helm.md §2-3,
+docs/spec/mission-files.md §2.5.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from .parameters import (BOOLEAN, NON_NEGATIVE, TEXT, ParamSpec, Parser, accepte
                          unique_specs)
 
 Value = Union[float, str]
-# Flags the helm posts every time (not deduplicated); spec ivp-helm.md §1.3.
+# Flags the helm posts every time (not deduplicated); spec docs/spec/ivp-helm.md §1.3.
 REPEATABLE_FLAGS = {"runflag", "runxflag", "idleflag", "activeflag", "inactiveflag", "endflag", "cycleflag"}
 
 

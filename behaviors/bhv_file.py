@@ -1,6 +1,6 @@
 """The `.bhv` helm behaviour file: initialize lines, `set` mode entries and Behavior blocks.
 
-The parser follows the reference state machine (spec: mission-files.md §2.1-2.5) and turns the
+The parser follows the reference state machine (spec: docs/spec/mission-files.md §2.1-2.5) and turns the
 file into validated pydantic structures; every problem is a MissionFileError naming file:line.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """BHV_StationKeep: hold a station point with inner/outer radii, swing time and hibernation.
 
-Spec: ivp-helm.md §6.
+Spec: docs/spec/ivp-helm.md §6.
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ class BHV_StationKeep(IvPBehavior):
         attr("swing_time", "swing_time", Parser("seconds, clipped to 0..60", _swing_time), "0",
              "after a center_activate, keep the heading this long before fixing the station"),
         attr("hibernation_radius", "hibernation_radius", Parser("off \\| -1 \\| number > 0", _hibernation), "off",
-             "the PSKEEP_MODE machine of ivp-helm.md §6.4"),
+             "the PSKEEP_MODE machine of docs/spec/ivp-helm.md §6.4"),
     )
 
     def __init__(self, *args, **kwargs):

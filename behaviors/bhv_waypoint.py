@@ -1,6 +1,6 @@
 """BHV_Waypoint: traverse a list of points with capture/slip radius, capture line, lead and repeats.
 
-Spec: ivp-helm.md §5 (advance rules §5.2, completion §5.3, wptflags §5.4, lead §5.5, function §5.6).
+Spec: docs/spec/ivp-helm.md §5 (advance rules §5.2, completion §5.3, wptflags §5.4, lead §5.5, function §5.6).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def _ipf_type(value: str, key: str) -> str:
     low = value.strip().lower()
     if low in ("roc", "rate_of_closure"):
         raise ValueError(f"ipf_type '{value}' (rate of closure) is not supported by this helm: "
-                         "ivp-helm.md gives no formula for it; use zaic or zaic_spd")
+                         "docs/spec/ivp-helm.md gives no formula for it; use zaic or zaic_spd")
     if low not in ("zaic", "zaic_spd"):
         raise ValueError(f"ipf_type must be zaic or zaic_spd, got '{value}'")
     return low
@@ -185,7 +185,7 @@ class BHV_Waypoint(IvPBehavior):
         else:
             self.capture_line = BOOLEAN(low, "capture_line")
 
-    @param("lead", parse=NUMBER, default="0", doc="track-line steering point this far ahead (ivp-helm.md §5.5); "
+    @param("lead", parse=NUMBER, default="0", doc="track-line steering point this far ahead (docs/spec/ivp-helm.md §5.5); "
                                                   "negative means 0")
     def _set_lead(self, lead: float) -> None:
         self.lead = max(lead, 0.0)

@@ -1,6 +1,6 @@
 """Behaviour flags (`runflag = VAR = value [if] cond`) and `$[MACRO]` expansion at posting time.
 
-Spec: mission-files.md §2.5 (flag grammar) and ivp-helm.md §5.8 (macros).
+Spec: docs/spec/mission-files.md §2.5 (flag grammar) and docs/spec/ivp-helm.md §5.8 (macros).
 """
 from __future__ import annotations
 

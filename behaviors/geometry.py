@@ -1,7 +1,7 @@
 """MOOS geometry strings: seglists, generated patterns, polygons and points, as behaviour
 parameters write them.
 
-Spec: ivp-helm.md §8; the generated patterns follow MOOS-IvP's geometry library
+Spec: docs/spec/ivp-helm.md §8; the generated patterns follow MOOS-IvP's geometry library
 (XYFormatUtilsSegl, XYFormatUtilsPoly, XYPatternBlock). Point lists, numbers and key=value lists
 are read by moosdb_py.formats, so they mean what they mean in every other app. Points are (n, 2)
 float arrays of local x/y metres (x east, y north); angles are compass degrees (0 = north,

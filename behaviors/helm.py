@@ -2,7 +2,7 @@
 
 Pure logic with no MOOS: feed it mail (`on_mail`) and call `iterate(now)`; it returns the posts to
 send as (var, value, source_aux) triples. `helm_app.HelmIvP` is the thin MOOS shell around it.
-Spec: ivp-helm.md §1-3.
+Spec: docs/spec/ivp-helm.md §1-3.
 """
 from __future__ import annotations
 

@@ -16,7 +16,7 @@ from .logic import as_number
 from .parameters import parse_bool
 
 EXEMPT_FROM_SKEW = ("HELM_MAP_CLEAR",)
-# Every key the pHelmIvP block may hold (mission-files.md §1.5), the MOOSApp base's own included;
+# Every key the pHelmIvP block may hold (docs/spec/mission-files.md §1.5), the MOOSApp base's own included;
 # anything else is a config warning that puts the helm in MALCONFIG, as the C++ helm does.
 KNOWN_PARAMS = frozenset({
     "apptick", "commstick", "maxappticks", "maxapptick", "iteratemode", "debug", "app_logging",

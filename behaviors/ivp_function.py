@@ -1,4 +1,4 @@
-"""IvP objective functions as dense utility arrays over some domain variables (spec ivp-helm.md §4.2, §4.5)."""
+"""IvP objective functions as dense utility arrays over some domain variables (spec docs/spec/ivp-helm.md §4.2, §4.5)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,6 +1,6 @@
 """The MOOS-IvP logic-condition language (behaviour conditions, mode sets, flag `[if]` parts).
 
-Grammar and evaluation quirks follow the reference (spec: mission-files.md §2.7): an unknown
+Grammar and evaluation quirks follow the reference (spec: docs/spec/mission-files.md §2.7): an unknown
 variable makes every relation false, `==` on strings is a colon-field match, and `and`/`or`
 need parenthesised operands.
 """

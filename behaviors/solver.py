@@ -1,4 +1,4 @@
-"""Solve: the domain point maximising the priority-weighted sum of IvP functions (spec ivp-helm.md §4.3)."""
+"""Solve: the domain point maximising the priority-weighted sum of IvP functions (spec docs/spec/ivp-helm.md §4.3)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""ZAIC builders: one-dimensional utility shapes over one domain variable's grid (spec ivp-helm.md §4.4).
+"""ZAIC builders: one-dimensional utility shapes over one domain variable's grid (spec docs/spec/ivp-helm.md §4.4).
 
 Each builder returns the dense array of utilities at the variable's grid points.
 """

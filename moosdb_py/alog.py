@@ -1,6 +1,6 @@
 """The `.alog` format of pLogger: writing it as MOOS-IvP's alog tools read it, and reading it back.
 
-Format (field-apps.md section 5): a `%%` header with the LOGSTART time, then one line per message,
+Format (docs/spec/field-apps.md section 5): a `%%` header with the LOGSTART time, then one line per message,
 `<rel time> <VAR> <source[:aux][@community]> <value> ` with fixed-width, left-justified columns that
 grow when a field is longer, and one trailing blank. So a reader splits the first three
 blank-separated tokens and takes the rest of the line as the value.

@@ -1,6 +1,6 @@
 """The MOOS V10 wire format, sans I/O: bytes in, messages out, and back.
 
-Layouts follow ../shared/spec/moos-wire-protocol.md §1-§4: little-endian, a message is
+Layouts follow docs/spec/moos-wire-protocol.md §1-§4: little-endian, a message is
 length|id|type|dtype|src|src_aux|community|key|time|dval|dval2|sval, a packet is
 length|count|compression-flag|messages, and a connection starts with a 32-byte protocol slot.
 The C++ reader silently stops at the first bad message; this one raises `CodecError` instead,

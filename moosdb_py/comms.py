@@ -1,4 +1,4 @@
-"""A synchronous client for scripts, shaped like pymoos's `comms` (see ../shared/spec/pymoos-api.md).
+"""A synchronous client for scripts, shaped like pymoos's `comms` (see docs/spec/pymoos-api.md).
 
 The `MOOSClient` runs in a background thread with its own event loop; every call here is
 thread-safe. Differences from pymoos: messages are `MOOSMsg` objects (attributes `key`, `double`,

@@ -7,7 +7,7 @@ and the passing of time (`tick`). Every input answers with what to do: per conne
 write and whether to close it afterwards (`Outgoing`). The core touches no socket and reads no clock,
 so tests drive it with captured bytes and a clock of their own.
 
-Behaviour follows ../shared/spec/moos-wire-protocol.md §4-§8 and the captures, except where the
+Behaviour follows docs/spec/moos-wire-protocol.md §4-§8 and the captures, except where the
 C++ DB has known flaws that clients do not depend on: mail for asynchronous clients goes out as
 soon as it is queued (not only when someone notifies), the DB_* variables refresh on `tick` as
 well as under traffic, and bad input costs only the offending client its connection.

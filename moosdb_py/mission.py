@@ -1,4 +1,4 @@
-"""Reading `.moos` mission files into typed structures (spec: mission-files.md section 1).
+"""Reading `.moos` mission files into typed structures (spec: docs/spec/mission-files.md section 1).
 
 The file always goes through `nsplug.preprocess` first (a plain .moos passes through unchanged), so
 every entry keeps the template file and line it came from.

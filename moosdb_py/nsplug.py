@@ -1,4 +1,4 @@
-"""The nsplug macro preprocessor, as MOOS-IvP missions use it (spec: mission-files.md section 3).
+"""The nsplug macro preprocessor, as MOOS-IvP missions use it (spec: docs/spec/mission-files.md section 3).
 
 Real missions are kept as `meta_*.moos` / `meta_*.bhv` templates; nsplug expands them before launch.
 `preprocess` does the same in memory and keeps, for every output line, the file and line it came

@@ -1,6 +1,6 @@
 """pymoos's API on the pure-Python client: a pymoos script runs with `from moosdb_py import pymoos`.
 
-The calls, arguments and defaults are those of pymoos (python-moos, ../shared/spec/pymoos-api.md);
+The calls, arguments and defaults are those of pymoos (python-moos, docs/spec/pymoos-api.md);
 `comms` is `moosdb_py.comms.comms` (a `MOOSClient` on a background event-loop thread) plus what
 pymoos adds: message objects with accessors, active queues, counters, tuning and comms status.
 `app` drives the `MOOSApp` life cycle with the script's callbacks. Strings travel as UTF-8, as

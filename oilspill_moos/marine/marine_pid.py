@@ -1,7 +1,7 @@
 """pMarinePID: heading/speed (and optional depth) PID from DESIRED_* to DESIRED_RUDDER/THRUST.
 
 `ScalarPID` and `PIDEngine` are pure and follow pMarinePIDV22's arithmetic
-(field-apps.md section 2); `MarinePID` is the MOOS app around them.
+(docs/spec/field-apps.md section 2); `MarinePID` is the MOOS app around them.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 `NodeReportBuilder` is pure: it is fed mail and asked for a report at a time;
 viewers, the helm's contact ledger and uFldShoreBroker parse what it writes, so
-field order and number formatting follow field-apps.md section 3 to the byte.
+field order and number formatting follow docs/spec/field-apps.md section 3 to the byte.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 deprecated uSimMarine as a variant of it (`SimMarineDeprecated`).
 
 The model (`MarineModel`) is pure: rudder/thrust in, state out, time step given.
-It reproduces the reference simulator's arithmetic (field-apps.md section 1),
+It reproduces the reference simulator's arithmetic (docs/spec/field-apps.md section 1),
 including its quirks, so a mission flies the same laps in our stack as in C++.
 """
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Pure (no sockets, no clocks): `Scene.apply(key, value, ...)` turns one piece of shoreside mail
 into the updates the page needs, and `Scene.snapshot()` is everything a newly opened page needs.
 The live app and the alog replay feed the same Scene, so the page cannot tell them apart.
-Formats: NODE_REPORT from field-apps.md §3.3, VIEW_* and geometry strings from ivp-helm.md §5.7,
+Formats: NODE_REPORT from docs/spec/field-apps.md §3.3, VIEW_* and geometry strings from docs/spec/ivp-helm.md §5.7,
 §6.5 and §8.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Gaps found auditing the helm against ivp-helm.md: config warnings, nav grace, hold_on_apps, the
+"""Gaps found auditing the helm against docs/spec/ivp-helm.md: config warnings, nav grace, hold_on_apps, the
 summary's timing fields, WPT_EFF_* posts, node-message flags and the unsupported roc objective."""
 from pathlib import Path
 

@@ -26,7 +26,7 @@ from moosdb_py.share import (
 
 
 def spec_layout(msg_id, dtype, src, aux, community, key, time, dval, dval2, sval: bytes) -> bytes:
-    """field-apps.md 4.4, written out field by field."""
+    """docs/spec/field-apps.md 4.4, written out field by field."""
     def s(b: bytes) -> bytes:
         return struct.pack("<i", len(b)) + b
     body = (struct.pack("<i", msg_id) + b"N" + dtype + s(src) + s(aux) + s(community) + s(key)
