@@ -25,8 +25,11 @@ TIMEOUT = 40.0        # wall seconds for any one step
 
 @pytest.fixture(scope="module")
 def running(tmp_path_factory):
+    # The whole-loop mode (patrol = loop): these tests check the loop itself is re-shared; the arcs of the
+    # default mode re-balance by the planner's own tests (test_planner.py, test_path_assign.py).
     mission = OilspillMission(tmp_path_factory.mktemp("oilspill"), vehicles=3, warp=WARP, standoff=10.0,
-                              node_timeout=40.0)  # 4 s of wall time: a loaded CI machine must not drop anyone
+                              node_timeout=40.0,  # 4 s of wall time: a loaded CI machine must not drop anyone
+                              extra={"PATROL": "loop"})
     mission.start()
     loop = asyncio.new_event_loop()
     observer = Observer("127.0.0.1", mission.shoreside.moos_port, WARP)
