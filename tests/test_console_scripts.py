@@ -18,7 +18,6 @@ SCRIPTS = PROJECT["scripts"]
 APPS = PROJECT["entry-points"]["moosdb_py.apps"]     # the MOOSApp classes pAntler can host
 # --version: the forecaster is the forecaster engineer's (issue 14 asks it of them too); every other
 # script answers it here.
-NO_VERSION_YET = {"oilspill-forecaster"}
 SHORT_PAGES = {"uXMS", "uPokeDB"} | {name for name in SCRIPTS if SCRIPTS[name].rpartition(":")[0] in
                                     {value.rpartition(":")[0] for value in APPS.values()}}
 NOT_DB_CLIENTS = {"oilspill-forecaster"}  # talks TCP to pPathAssign: its interface is input and output
@@ -80,7 +79,7 @@ def test_a_reader_that_stops_early_is_no_error(name):
     assert proc.wait(30) == 0 and "Traceback" not in err, err
 
 
-@pytest.mark.parametrize("name", sorted(set(SCRIPTS) - NO_VERSION_YET))
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
 def test_script_answers_version(name, capsys):
     text = page(name, "--version", capsys)
     assert PROJECT["version"] in text and "oilspill-moos" in text and len(text.splitlines()) == 1

@@ -11,7 +11,7 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from moosdb_py.app import print_page
+from moosdb_py.formats import print_page, version_page
 
 SUBCOMMANDS = ("simulate", "train", "evaluate", "forecast", "push")
 
@@ -143,6 +143,9 @@ def main(argv=None) -> int:
             from .evaluate import main as evaluate_main
             return evaluate_main(rest)
         return forecast_main(rest) if command == "forecast" else push_main(rest)
+    if "--version" in argv:
+        print_page(version_page("oilspill-forecaster"))
+        return 0
     if "--example" in argv or "--interface" in argv:
         from .kinds import DEFAULT_MODEL
 
@@ -155,6 +158,7 @@ def main(argv=None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter))
     parser.add_argument("--example", action="store_true", help="print the settings with their defaults")
     parser.add_argument("--interface", action="store_true", help="print what goes in and out")
+    parser.add_argument("--version", action="store_true", help="print the release")
     return operational.main(args=parser.parse_args(argv))
 
 
