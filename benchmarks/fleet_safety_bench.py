@@ -28,7 +28,8 @@ import shapely
 from moosdb_py.alog import read_alog
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.oilspill_mission import Observer, OilspillMission, wait_for
-from oilspill_moos.response.path_assign import OIL_PATH, format_points
+from oilspill_moos.messages import format_points
+from oilspill_moos.response.path_assign import OIL_PATH
 
 VESSELS = 10
 SPACING = 50.0        # m between neighbours in the cluster (two rows of five)

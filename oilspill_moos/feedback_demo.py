@@ -33,7 +33,7 @@ from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.features import to_plane
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.scenario_map import ScenarioMap
 from oilspill_moos.messages import format_points, parse_report
 from oilspill_moos.response.path_assign import OIL_PATH
 

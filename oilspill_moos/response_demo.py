@@ -33,7 +33,7 @@ from oilspill_moos.response.measures import (
     perimeter_coverage,
     positions_at,
 )
-from oilspill_moos.response.oil_fusion import ScenarioMap
+from oilspill_moos.response.scenario_map import ScenarioMap
 from oilspill_moos.response.oil_sensor import TruthSpill
 from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, STATION_KEEPING
 from oilspill_moos.response.planner import containment_region

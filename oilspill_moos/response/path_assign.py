@@ -18,14 +18,12 @@ from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
 from moosdb_py.formats import format_number
 from oilspill_moos.geodesy import LocalGrid
-from oilspill_moos.messages import (  # noqa: F401  (format_points, parse_polygon_spec: older callers import them from here)
+from oilspill_moos.messages import (
     Boundary,
     BoundaryError,
     format_forecast,
-    format_points,
     operating_area,
     parse_boundary_line,
-    parse_polygon_spec,
     parse_report,
     points_update,
     polygon_string,

@@ -15,7 +15,8 @@ from helpers import wait_until
 from moosdb_py.alog import read_alog
 from oilspill_moos.oilspill_mission import OilspillMission, Observer
 from oilspill_moos.forecaster.push import push_lines
-from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION, parse_polygon_spec
+from oilspill_moos.messages import parse_polygon_spec
+from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION
 
 WARP = 10.0
 SPILL = "pts={-30,60:30,60:30,120:-30,120},label=test-spill\n"  # local metres, north of the start line
