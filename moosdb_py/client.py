@@ -63,7 +63,9 @@ class MOOSClient:
         self._outbox: list[MOOSMsg] = []
         self._next_id = 0
         self._closing = False
-        self._wake: asyncio.Future | None = None   # the write loop's sleep, resolved early by a post or close()
+        self._last_timing = -1e300
+        self._kick: Callable[[], None] | None = None   # the session's "something to send" (a post calls it)
+        self._wake: asyncio.Future | None = None   # the session's sleep, resolved early by close()
         self._connected_event: asyncio.Event | None = None
         self._closed_event: asyncio.Event | None = None
 
@@ -77,23 +79,24 @@ class MOOSClient:
         while not self._closing:
             try:
                 if self.local_db is not None:
-                    reader, writer = self.local_db.open_local()
+                    await self._local_session(self.local_db)
                 else:
-                    reader, writer = await asyncio.open_connection(self.host, self.port)
-            except OSError as exc:
-                log.debug("%s: cannot connect to %s:%d: %s", self.name, self.host, self.port, exc)
-            else:
-                try:
-                    await self._session(reader, writer)
-                except Poisoned as exc:
-                    self.poisoned = str(exc)
-                    log.error("%s: refused by the DB: %s", self.name, exc)
-                    break
-                except (OSError, EOFError, TimeoutError, codec.CodecError, codec.FramingError) as exc:
-                    if not self._closing:
-                        log.warning("%s: connection to %s:%d lost: %s", self.name, self.host, self.port, exc)
-                finally:
-                    self._disconnected(writer)
+                    await self._session()
+            except Poisoned as exc:
+                self.poisoned = str(exc)
+                log.error("%s: refused by the DB: %s", self.name, exc)
+                break
+            except (OSError, EOFError, TimeoutError, codec.CodecError, codec.FramingError) as exc:
+                if self._closing:
+                    pass
+                elif self.connected:
+                    log.warning("%s: connection to %s:%d lost: %s", self.name, self.host, self.port, exc)
+                else:
+                    log.debug("%s: cannot connect to %s:%d: %s", self.name, self.host, self.port, exc)
+            finally:
+                self.connected = False
+                self._connected_event.clear()
+                self._kick = None
             if not self._closing:
                 try:
                     async with asyncio.timeout(self.reconnect_interval):
@@ -116,62 +119,109 @@ class MOOSClient:
     def close(self) -> None:
         """Send what is queued, then disconnect and stop reconnecting."""
         self._closing = True
-        if self._wake is not None:
-            resolve(self._wake)
+        self._wake_up()
         if self._closed_event is not None:
             self._closed_event.set()
 
-    def _disconnected(self, writer: asyncio.StreamWriter) -> None:
-        self.connected = False
-        self._connected_event.clear()
-        writer.close()
-
     # -- one connection ------------------------------------------------------------------------
-    async def _session(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        hello = MOOSMsg(DATA, STRING, "asynchronous", string=self.name, time=self.moos_time())
-        writer.write(codec.PROTOCOL_SLOT + codec.encode_packet([hello]))
-        framer = codec.StreamFramer()
-        async with asyncio.timeout(HANDSHAKE_TIMEOUT):
-            while (packet := framer.next_unit()) is None:
-                data = await reader.read(65536)
-                if not data:
-                    raise EOFError("DB closed the connection during the handshake (bad protocol?)")
-                framer.feed(data)
-        reply = codec.decode_packet(packet)
-        if reply and reply[0].msg_type == POISON:
-            raise Poisoned(reply[0].string)
-        if not reply or reply[0].msg_type != WELCOME:
-            raise codec.CodecError(f"expected a welcome, got {reply[0] if reply else 'an empty packet'}")
-        self.community = reply[0].community
-        self.db_hostname = reply[0].source_aux.partition("=")[2]
-        self.db_skew = reply[0].double
+    def _hello(self) -> MOOSMsg:
+        return MOOSMsg(DATA, STRING, "asynchronous", string=self.name, time=self.moos_time())
+
+    def _welcomed(self, reply: MOOSMsg | None) -> None:
+        """The DB's answer to our hello: connected (subscriptions re-applied, `on_connect` called), or refused."""
+        if reply is not None and reply.msg_type == POISON:
+            raise Poisoned(reply.string)
+        if reply is None or reply.msg_type != WELCOME:
+            raise codec.CodecError(f"expected a welcome, got {reply or 'an empty packet'}")
+        self.community = reply.community
+        self.db_hostname = reply.source_aux.partition("=")[2]
+        self.db_skew = reply.double
         self.connected = True
+        self._last_timing = -1e300
         self._applied.clear()
         self._apply_subscriptions()
         self._connected_event.set()
         log.info("%s: connected to %s:%d (community %s)", self.name, self.host, self.port, self.community)
         if self.on_connect:
             self.on_connect()
-        writing = asyncio.create_task(self._write_loop(writer))
+
+    async def _session(self) -> None:
+        """One TCP connection: handshake, then a write loop beside the reads."""
+        reader, writer = await asyncio.open_connection(self.host, self.port)
         try:
-            self._deliver(framer)
-            while True:
-                data = await reader.read(262144)
-                if not data:
-                    if self._closing:
-                        return
-                    raise EOFError("DB closed the connection")
-                self.bytes_read += len(data)
-                framer.feed(data)
+            writer.write(codec.PROTOCOL_SLOT + codec.encode_packet([self._hello()]))
+            framer = codec.StreamFramer()
+            async with asyncio.timeout(HANDSHAKE_TIMEOUT):
+                while (packet := framer.next_unit()) is None:
+                    data = await reader.read(65536)
+                    if not data:
+                        raise EOFError("DB closed the connection during the handshake (bad protocol?)")
+                    framer.feed(data)
+            reply = codec.decode_packet(packet)
+            self._welcomed(reply[0] if reply else None)
+            writing = asyncio.create_task(self._write_loop(writer))
+            self._kick = self._wake_up
+            try:
                 self._deliver(framer)
+                while True:
+                    data = await reader.read(262144)
+                    if not data:
+                        if self._closing:
+                            return
+                        raise EOFError("DB closed the connection")
+                    self.bytes_read += len(data)
+                    framer.feed(data)
+                    self._deliver(framer)
+            finally:
+                writing.cancel()
         finally:
-            writing.cancel()
+            writer.close()
+
+    async def _local_session(self, db) -> None:
+        """One in-process connection (`MOOSDB.open_local`): the DB takes our batches and hands us mail as
+        MOOSMsgs; we only wake to say we are alive (a timing message a second) or to end."""
+        link = db.open_local(self._hello())
+        try:
+            self._welcomed(link.replies[0] if link.replies else None)
+            link.attach(self._next_batch, self._deliver_mail)
+            self._deliver_mail(link.replies[1:])
+            self._kick = link.kick
+            loop = asyncio.get_running_loop()
+            while not self._closing:
+                link.kick()
+                self._wake = link.wake = wake = loop.create_future()
+                timer = loop.call_later(max(self._last_timing + TIMING_PERIOD - _time.monotonic(), 0.0), resolve, wake)
+                try:
+                    await wake
+                finally:
+                    timer.cancel()
+                    self._wake = link.wake = None
+                if link.error is not None:
+                    raise link.error
+                if link.ended:
+                    raise EOFError("DB closed the connection")
+        finally:
+            link.disconnect()
+
+    def _wake_up(self) -> None:
+        if self._wake is not None:
+            resolve(self._wake)
+
+    def _next_batch(self) -> list[MOOSMsg]:
+        """What goes to the DB now: the outbox, after a timing message when a second has passed since the
+        last one (also sent alone, to stay alive)."""
+        msgs, self._outbox = self._outbox, []
+        mono = _time.monotonic()
+        if mono - self._last_timing >= TIMING_PERIOD:
+            self._last_timing = mono
+            msgs.insert(0, MOOSMsg(TIMING, "D", ASYNC_TIMING_KEY, 0.0, time=self.moos_time()))
+        self.messages_sent += len(msgs)
+        return msgs
 
     async def _write_loop(self, writer: asyncio.StreamWriter) -> None:
-        last_timing = -1e300
         loop = asyncio.get_running_loop()
         while True:
-            delay = last_timing + TIMING_PERIOD - _time.monotonic()
+            delay = self._last_timing + TIMING_PERIOD - _time.monotonic()
             if delay > 0 and not self._outbox and not self._closing:
                 self._wake = wake = loop.create_future()
                 timer = loop.call_later(delay, resolve, wake)
@@ -180,15 +230,10 @@ class MOOSClient:
                 finally:
                     timer.cancel()
                     self._wake = None
-            msgs, self._outbox = self._outbox, []
-            mono = _time.monotonic()
-            if mono - last_timing >= TIMING_PERIOD:
-                last_timing = mono
-                msgs.insert(0, MOOSMsg(TIMING, "D", ASYNC_TIMING_KEY, 0.0, time=self.moos_time()))
+            msgs = self._next_batch()
             if msgs:
                 packet = codec.encode_packet(msgs)
                 writer.write(packet)
-                self.messages_sent += len(msgs)
                 self.bytes_sent += len(packet)
                 await writer.drain()
             if self._closing and not self._outbox:
@@ -198,7 +243,12 @@ class MOOSClient:
     def _deliver(self, framer: codec.StreamFramer) -> None:
         mail = []
         while (packet := framer.next_unit()) is not None:
-            mail.extend(m for m in codec.decode_packet(packet) if m.msg_type not in (TIMING, NULL_MSG))
+            mail += codec.decode_packet(packet)
+        self._deliver_mail(mail)
+
+    def _deliver_mail(self, mail: list[MOOSMsg]) -> None:
+        """Mail from the DB (timing echoes and NULL messages left out) to `on_mail`, else the inbox."""
+        mail = [m for m in mail if m.msg_type != TIMING and m.msg_type != NULL_MSG]
         if not mail:
             return
         self.messages_read += len(mail)
@@ -221,8 +271,8 @@ class MOOSClient:
         if len(outbox) > OUTBOX_LIMIT:
             log.warning("%s: outbox over %d messages, dropping the oldest half", self.name, OUTBOX_LIMIT)
             del outbox[:len(outbox) // 2]
-        if self._wake is not None:
-            resolve(self._wake)
+        if self._kick is not None:
+            self._kick()
 
     def _apply_subscriptions(self) -> None:
         for key, interval in self.registrations.items():

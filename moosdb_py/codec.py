@@ -46,6 +46,15 @@ def string_field(data: bytes) -> bytes:
     return _INT.pack(len(data)) + data if data else _EMPTY_STR
 
 
+def as_on_the_wire(msg: MOOSMsg) -> None:
+    """Make the message's text what a reader decodes from `encode_message` of it (text outside latin-1
+    arrives as its UTF-8 bytes read as latin-1): how the in-process path gives the mail a socket would."""
+    for name in ("key", "source", "source_aux", "string"):
+        value = getattr(msg, name)
+        if not value.isascii():
+            setattr(msg, name, _text(value).decode("latin-1"))
+
+
 def encode_message(msg: MOOSMsg) -> bytes:
     src, aux, comm, key = _text(msg.source), _text(msg.source_aux), _text(msg.community), _text(msg.key)
     sval = msg.binary if msg.data_type == BINARY else _text(msg.string)
@@ -221,14 +230,20 @@ def _check_end(packet: bytes, pos: int, count: int) -> None:
         raise CodecError(f"packet has {len(packet) - pos} stray bytes after its {count} messages")
 
 
+def decode_run(buf: bytes, count: int, pos: int = 0) -> tuple[list[MOOSMsg], int]:
+    """`count` messages back to back in `buf` from `pos` (a packet's body, a run of mail the DB holds),
+    and the offset just past them."""
+    msgs = []
+    for _ in range(count):
+        msg, pos = decode_message(buf, pos)
+        msgs.append(msg)
+    return msgs, pos
+
+
 def decode_packet(packet: bytes) -> list[MOOSMsg]:
     count = _packet_count(packet)
-    msgs = []
-    pos = PACKET_HEADER_SIZE
-    for _ in range(count):
-        msg, pos = decode_message(packet, pos)
-        msgs.append(msg)
-    _check_end(packet, pos, count)
+    msgs, end = decode_run(packet, count, PACKET_HEADER_SIZE)
+    _check_end(packet, end, count)
     return msgs
 
 

@@ -57,11 +57,13 @@ def parse_wildcard(sval: str) -> tuple[str, str, float]:
 
 @dataclass(eq=False, slots=True)
 class DBVar:
-    """One variable: type fixed by its first write, last message kept as the bytes that arrived."""
+    """One variable: type fixed by its first write, last message kept as it arrived (the bytes from a
+    socket client, the MOOSMsg from an in-process one), the other form made only when asked for."""
 
     name: str
     data_type: str = NOT_SET
-    wire: bytes = b""                   # the stored value: the message as written (community filled in)
+    _wire: bytes = b""                  # the stored value as the bytes written (community filled in)...
+    _msg: MOOSMsg | None = None         # ... or as the message, decoded
     source: str = ""                    # its writer
     written_time: float = -1.0
     freq: float = 0.0
@@ -70,38 +72,58 @@ class DBVar:
     subscribers: dict = field(default_factory=dict)   # DBClient -> [interval, last_sent]
 
     def reset(self) -> None:
-        self.wire, self.source, self.written_time, self.freq, self.window_writes = b"", "", -1.0, 0.0, 0
+        self._wire, self._msg, self.source, self.written_time, self.freq, self.window_writes = b"", None, "", -1.0, 0.0, 0
+
+    def store(self, wire: bytes = b"", msg: MOOSMsg | None = None) -> None:
+        """The new value, in the form it came in."""
+        self._wire, self._msg = wire, msg
 
     @property
     def written(self) -> bool:
         return self.written_time >= 0
 
     @property
+    def stored(self) -> bool:
+        return self._msg is not None or bool(self._wire)
+
+    @property
+    def wire(self) -> bytes:
+        """The stored message as bytes (encoded once, when a socket client first needs it)."""
+        if not self._wire and self._msg is not None:
+            self._wire = codec.encode_message(self._msg)
+        return self._wire
+
+    @property
     def last(self) -> MOOSMsg:
-        """The stored message, decoded (for summaries and server requests, not the hot path)."""
-        return codec.decode_message(self.wire)[0] if self.wire else MOOSMsg(NOTIFY, self.data_type, self.name)
+        """The stored message, decoded once (not to be changed: copy it to hand it on)."""
+        if self._msg is None:
+            if not self._wire:
+                return MOOSMsg(NOTIFY, self.data_type, self.name)
+            self._msg = codec.decode_message(self._wire)[0]
+        return self._msg
 
 
 class DBClient:
     """One connection as the DB knows it: handshake state, held mail, subscriptions (spec §5)."""
 
-    __slots__ = ("handle", "peer", "state", "framer", "scanner", "name", "asynchronous", "consolidation", "held",
-                 "held_count", "held_bytes", "outgoing", "end", "subscribed", "published", "filters", "opened",
+    __slots__ = ("handle", "peer", "local", "state", "framer", "scanner", "name", "asynchronous", "consolidation",
+                 "held", "held_count", "held_bytes", "outgoing", "end", "subscribed", "published", "filters", "opened",
                  "last_rx", "packets_in", "latency", "drop_reason")
 
-    def __init__(self, handle: Any, peer: str, now: float, max_packet: int):
+    def __init__(self, handle: Any, peer: str, now: float, max_packet: int, local: bool = False):
         self.handle = handle            # the shell's token for the connection (its transport, a test's label)
         self.peer = peer
+        self.local = local              # in-process (`connect_local`): held and outgoing hold MOOSMsgs, not bytes
         self.state = PROTOCOL
         self.framer = codec.StreamFramer(protocol_slot=True, max_packet=max_packet)
         self.scanner = codec.PacketScanner()
         self.name = ""
         self.asynchronous = False
         self.consolidation = 0.0
-        self.held: list[bytes] = []     # mail not yet in a packet: chunks of back-to-back messages
+        self.held: list = []            # mail not yet in a packet: chunks of back-to-back messages (MOOSMsgs if local)
         self.held_count = 0
         self.held_bytes = 0
-        self.outgoing: list[bytes] = []   # packets for the shell to write
+        self.outgoing: list = []          # packets for the shell to write (MOOSMsgs if local)
         self.end: str | None = None       # CLOSE or ABORT once the DB is done with the connection
         self.subscribed: set[str] = set()
         self.published: set[str] = set()
@@ -120,8 +142,8 @@ class DBClient:
         return held, count
 
 
-# What the shell does on one connection: (client, bytes to write, then CLOSE, ABORT or None). A plain
-# tuple: a NamedTuple made per answer cost a measurable part of a small packet's trip through the DB.
+# What the shell does on one connection: (client, bytes to write, then CLOSE, ABORT or None); for an
+# in-process client a list of MOOSMsgs instead of the bytes. A plain tuple: a NamedTuple made per answer cost a measurable part of a small packet's trip through the DB.
 Outgoing = tuple[DBClient, bytes, "str | None"]
 
 
@@ -154,8 +176,7 @@ class MOOSDBCore:
         self.start_time = self._last_refresh = now
         for name, dtype in DB_VARIABLES:
             var = self.vars[name] = DBVar(name, dtype)
-            var.wire = codec.encode_message(MOOSMsg(NOTIFY, dtype, name, now, source=self.name,
-                                                    community=community, time=now))
+            var.store(msg=MOOSMsg(NOTIFY, dtype, name, now, source=self.name, community=community, time=now))
             var.window_start = now
 
     # -- inputs ----------------------------------------------------------------------------------
@@ -164,6 +185,48 @@ class MOOSDBCore:
         client = DBClient(handle, peer, now, self.max_packet)
         self.connections.add(client)
         return client
+
+    def connect_local(self, handle: Any, hello: MOOSMsg, now: float) -> tuple[DBClient, Iterable[Outgoing]]:
+        """An in-process client's connection, its handshake done at once: the welcome (or the poison that
+        refuses it) is its first mail. It then talks in MOOSMsgs (`receive_local`), without bytes."""
+        client = DBClient(handle, "in-process", now, self.max_packet, local=True)
+        self.connections.add(client)
+        client.state = NAME
+        self._admit(client, hello, now)
+        return client, self._output(now)
+
+    def receive_local(self, client: DBClient, msgs: list[MOOSMsg], now: float) -> Iterable[Outgoing]:
+        """Messages from an in-process client, with the effect `receive` gives their packet: the same
+        routing, replies and mail, as the messages a subscriber would decode (the DB keeps and hands on
+        copies; the client gives the list away)."""
+        if client.state != READY or not msgs:
+            return self._output(now)
+        client.last_rx = now
+        client.packets_in += 1
+        head: list[MOOSMsg] = []
+        first = 0
+        if msgs[0].msg_type == TIMING:
+            timing, first = msgs[0], 1
+            self._audit(client, now, timing.time)
+            timing.double, timing.double_aux = now, client.consolidation
+            head.append(timing)
+        replies: list[MOOSMsg] = []
+        community = self.community
+        for msg in msgs[first:] if first else msgs:
+            mtype = msg.msg_type
+            if mtype == NOTIFY:
+                codec.as_on_the_wire(msg)
+                if not msg.community:
+                    msg.community = community
+                client.published.add(msg.key)
+                self._notify_message(msg, now)
+            elif mtype != COMMAND and mtype != NULL_MSG:
+                self._request(client, msg, replies, now)
+        self._refresh_if_due(now)
+        if head or replies:
+            client.outgoing += head + replies
+            self._ready[client] = None
+        return self._output(now)
 
     def receive(self, client: DBClient, data: bytes, now: float) -> Iterable[Outgoing]:
         """Bytes from a client, however the stream was chunked."""
@@ -234,6 +297,15 @@ class MOOSDBCore:
 
     @staticmethod
     def _take(client: DBClient) -> Outgoing | None:
+        if client.local:
+            mail = client.outgoing
+            if client.held:
+                mail += client.held
+                client.held, client.held_count = [], 0
+            if mail:
+                client.outgoing = []
+                return (client, mail, client.end)
+            return (client, mail, client.end) if client.end else None
         packets = client.outgoing
         if client.held:
             packet = codec.pack_packet(client.held, client.held_count)
@@ -250,6 +322,22 @@ class MOOSDBCore:
     def _send(self, client: DBClient, packet: bytes) -> None:
         if client.state != CLOSED:
             client.outgoing.append(packet)
+            self._ready[client] = None
+
+    def _reply(self, client: DBClient, msg: MOOSMsg) -> None:
+        """One message in a packet of its own (the welcome, a poison)."""
+        if client.local:
+            if client.state != CLOSED:
+                client.outgoing.append(msg)
+                self._ready[client] = None
+        else:
+            self._send(client, codec.encode_packet([msg]))
+
+    def _queue_messages(self, client: DBClient, msgs: list[MOOSMsg]) -> None:
+        """Hold mail for an in-process client (always asynchronous)."""
+        if client.state != CLOSED:
+            client.held += msgs
+            client.held_count += len(msgs)
             self._ready[client] = None
 
     def _queue(self, client: DBClient, chunk: bytes, count: int) -> None:
@@ -284,7 +372,7 @@ class MOOSDBCore:
 
     def _poison(self, client: DBClient, reason: str, now: float) -> None:
         log.warning("%s refused: %s", client, reason)
-        self._send(client, codec.encode_packet([MOOSMsg(POISON, STRING, "", string=reason, time=now)]))
+        self._reply(client, MOOSMsg(POISON, STRING, "", string=reason, time=now))
         self._close(client)
 
     # -- handshake (spec §4) ---------------------------------------------------------------------
@@ -318,7 +406,7 @@ class MOOSDBCore:
         self.clients[name] = client
         welcome = MOOSMsg(WELCOME, DOUBLE, "", now - hello.time, "asynchronous", source_aux=f"hostname={self.hostname}",
                           community=self.community, time=now)
-        self._send(client, codec.encode_packet([welcome]))
+        self._reply(client, welcome)
         log.info("%s connected (%s)", client, "asynchronous" if client.asynchronous else "synchronous")
         self._post("DB_EVENT", f"connected={name}", now)
 
@@ -352,7 +440,7 @@ class MOOSDBCore:
             head.append(codec.encode_message(timing))
         if not client.asynchronous:   # a synchronous client gets one reply per packet, NULL first
             head.insert(0, codec.encode_message(MOOSMsg(NULL_MSG, DOUBLE, double=now)))
-        replies: list[bytes] = []
+        replies: list[MOOSMsg] = []
         community = self.community_field
         for run in found:
             mtype = run.msg_type
@@ -365,9 +453,10 @@ class MOOSDBCore:
         self._refresh_if_due(now)
         held, count = client.take_held()
         if head or replies or held:
-            self._send(client, codec.pack_packet(head + replies + held, len(head) + len(replies) + count))
+            head += map(codec.encode_message, replies)
+            self._send(client, codec.pack_packet(head + held, len(head) + count))
 
-    def _request(self, client: DBClient, msg: MOOSMsg, replies: list[bytes], now: float) -> None:
+    def _request(self, client: DBClient, msg: MOOSMsg, replies: list[MOOSMsg], now: float) -> None:
         mtype = msg.msg_type
         if mtype == REGISTER:
             self._register(client, msg.key, msg.double, now)
@@ -380,22 +469,28 @@ class MOOSDBCore:
         else:
             log.debug("%s: ignoring message type %r", client, mtype)
 
+    def _written(self, key: str, data_type: str, source: str, now: float) -> DBVar | None:
+        """The variable a write goes to; None when its type refuses the write."""
+        var = self.vars.get(key)
+        if var is None:
+            var = self.vars[key] = DBVar(key, window_start=now)
+        if var.data_type == NOT_SET:
+            var.data_type = data_type
+            self._apply_filters(var, source)
+        elif var.data_type != data_type:
+            log.info("rejected write of %s by %s: %s is of type %s, not %s", key, source, key, var.data_type,
+                     data_type)
+            return None
+        return var
+
     def _notify(self, run: codec.WireRun, chunk: bytes, now: float) -> None:
         """Store the run's writes (as the bytes to forward, back to back in `chunk`) and queue them for
         the subscribers.
 
         All arrived in one packet, so at one DB time: a throttled subscriber gets the first only.
         """
-        key, data_type = run.key, run.data_type
-        var = self.vars.get(key)
+        var = self._written(run.key, run.data_type, run.source, now)
         if var is None:
-            var = self.vars[key] = DBVar(key, window_start=now)
-        if var.data_type == NOT_SET:
-            var.data_type = data_type
-            self._apply_filters(var, run.source)
-        elif var.data_type != data_type:
-            log.info("rejected write of %s by %s: %s is of type %s, not %s", key, run.source, key, var.data_type,
-                     data_type)
             return
         bounds = run.bounds
         count = len(bounds) - 1
@@ -403,23 +498,51 @@ class MOOSDBCore:
         if count > 1:
             grow = (len(chunk) - bounds[-1] + bounds[0]) // count      # the community filled in, per message
             first, last = chunk[:bounds[1] - bounds[0] + grow], chunk[len(chunk) - (bounds[-1] - bounds[-2] + grow):]
-        var.wire = last
+        var.store(wire=last)
         var.source = run.source
         var.written_time = now
         var.window_writes += count
+        decoded = None
         for client, sub in var.subscribers.items():
             if sub[0] <= 0.0:
-                self._queue(client, chunk, count)
+                wire, n = chunk, count
             elif now - sub[1] >= sub[0]:
                 sub[1] = now
-                self._queue(client, first, 1)
+                wire, n = first, 1
+            else:
+                continue
+            if client.local:
+                if decoded is None:
+                    decoded = codec.decode_run(chunk, count)[0]
+                self._queue_messages(client, [m.copy() for m in decoded[:n]])
+            else:
+                self._queue(client, wire, n)
+
+    def _notify_message(self, msg: MOOSMsg, now: float) -> None:
+        """`_notify` for a write that came as a message (an in-process client's, the DB's own): encoded only
+        if a socket client subscribes, each in-process subscriber given its own copy."""
+        var = self._written(msg.key, msg.data_type, msg.source, now)
+        if var is None:
+            return
+        var.store(msg=msg)
+        var.source = msg.source
+        var.written_time = now
+        var.window_writes += 1
+        for client, sub in var.subscribers.items():
+            if sub[0] > 0.0:
+                if now - sub[1] < sub[0]:
+                    continue
+                sub[1] = now
+            if client.local:
+                self._queue_messages(client, [msg.copy()])
+            else:
+                self._queue(client, var.wire, 1)
 
     def _post(self, key: str, value: float | str, now: float) -> None:
         """A notify by the DB itself (its DB_* variables)."""
         msg = MOOSMsg.notification(key, value, time=now, source=self.name)
         msg.community = self.community
-        wire = codec.encode_message(msg)
-        self._notify(codec.scan_message(wire), wire, now)
+        self._notify_message(msg, now)
 
     def _register(self, client: DBClient, key: str, interval: float, now: float) -> None:
         if not client.name:
@@ -432,7 +555,12 @@ class MOOSDBCore:
         client.subscribed.add(key)
         if var.written:
             sub[1] = now
-            self._queue(client, var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1), 1)
+            if client.local:
+                current = var.last.copy()
+                current.id = -1
+                self._queue_messages(client, [current])
+            else:
+                self._queue(client, var.wire if codec.message_id(var.wire) == -1 else codec.with_id(var.wire, -1), 1)
 
     def _unregister(self, client: DBClient, key: str) -> None:
         var = self.vars.get(key)
@@ -466,7 +594,7 @@ class MOOSDBCore:
                     break
 
     # -- server requests (spec §7) ---------------------------------------------------------------
-    def _server_request(self, msg: MOOSMsg, now: float) -> list[bytes]:
+    def _server_request(self, msg: MOOSMsg, now: float) -> list[MOOSMsg]:
         """Replies in the order the C++ DB sends them (each inserted at the front)."""
         key, rid = msg.key, msg.id
         out: list[MOOSMsg] = []
@@ -493,7 +621,7 @@ class MOOSDBCore:
             for client in self.clients.values():
                 client.take_held()
             log.info("DB_CLEAR: every variable reset and all held mail dropped")
-        return [codec.encode_message(m) for m in reversed(out)]
+        return out[::-1]
 
     # -- the DB's own variables ------------------------------------------------------------------
     @staticmethod
@@ -538,7 +666,7 @@ class MOOSDBCore:
         for name in sorted(self.vars):
             var = self.vars[name]
             last = var.last
-            known = var.written or bool(var.wire)
+            known = var.written or var.stored
             when = var.written_time if var.written else last.time
             stamp = (_time.strftime("%H:%M:%S", _time.localtime(when)) + f".{int(when * 1000) % 1000:03d}"
                      if known else "")

@@ -73,6 +73,11 @@ class MOOSMsg:
         return cls(NOTIFY, DOUBLE, key, double=float(value), source=source, source_aux=source_aux,
                    time=time, id=msg_id)
 
+    def copy(self) -> "MOOSMsg":
+        """An independent copy (the DB hands each in-process subscriber its own)."""
+        return MOOSMsg(self.msg_type, self.data_type, self.key, self.double, self.string, self.binary, self.source,
+                       self.source_aux, self.community, self.time, self.id, self.double_aux)
+
     @property
     def value(self) -> float | str | bytes:
         if self.data_type == DOUBLE:

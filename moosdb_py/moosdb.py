@@ -13,13 +13,14 @@ import logging
 import signal
 import socket
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from . import codec
+from .client import resolve
 from .db_core import (ABORT, CLOSE, DEFAULT_CLIENT_TIMEOUT, DEFAULT_COMMUNITY, DEFAULT_MAX_QUEUE, REFRESH_PERIOD,
                       DBClient, DBVar, MOOSDBCore, Outgoing)
 from .formats import print_page, version_page
-from .message import moos_time
+from .message import MOOSMsg, moos_time
 
 log = logging.getLogger("moosdb")
 
@@ -58,56 +59,70 @@ class ClientConnection(asyncio.Protocol):
                                             db.now()))
 
 
-class _LocalTransport:
-    """The DB's side of an in-process connection: what the core sends lands in the client's reader."""
+class LocalLink:
+    """An in-process client's connection (pAntler --host-db): MOOSMsgs both ways, no bytes, no socket.
 
-    def __init__(self, reader: asyncio.StreamReader):
-        self.reader = reader
+    The client posts into its own outbox and `kick`s; the DB takes every kicked client's batch (`take`)
+    in one pass of the event loop, after the posting code returns, as it would take a socket's bytes,
+    and hands each client its mail (`deliver`) as soon as the core answers. The core's routing is the
+    one socket clients get, so the mail is the same (tests/moosdb_py/test_local_connection.py).
+    """
 
-    def write(self, data: bytes) -> None:
-        if not self.reader.at_eof():
-            self.reader.feed_data(data)
+    def __init__(self, db: "MOOSDB", hello: MOOSMsg):
+        self.db = db
+        self.take: Callable[[], list[MOOSMsg]] | None = None     # set by `attach`
+        self.deliver: Callable[[list[MOOSMsg]], None] | None = None
+        self.replies: list[MOOSMsg] = []     # what arrives before `attach`: the welcome or the poison
+        self.ended = False
+        self.error: BaseException | None = None   # what the client's `deliver` raised (its session re-raises it)
+        self.wake: asyncio.Future | None = None   # the client's wait, resolved when the connection ends
+        self.client, outgoing = db.core.connect_local(self, hello, db.now())
+        db.transmit(outgoing)
+
+    def attach(self, take: Callable[[], list[MOOSMsg]], deliver: Callable[[list[MOOSMsg]], None]) -> None:
+        self.take, self.deliver = take, deliver
+
+    # -- the DB's side (what `MOOSDB.transmit` needs of a transport) -------------------------------
+    def write(self, mail: list[MOOSMsg]) -> None:
+        if self.deliver is None:
+            self.replies += mail
+        elif self.error is None:
+            try:
+                self.deliver(mail)
+            except Exception as exc:   # the client's mail handler failed: its session ends with the error
+                self.error = exc
+                if self.wake is not None:
+                    resolve(self.wake)
 
     def get_write_buffer_size(self) -> int:
-        return 0   # the client's own task drains its reader every loop pass
+        return 0
 
     def close(self) -> None:
-        if not self.reader.at_eof():
-            self.reader.feed_eof()
+        self.ended = True
+        if self.wake is not None:
+            resolve(self.wake)
 
     abort = close
 
+    # -- the client's side ------------------------------------------------------------------------
+    def kick(self) -> None:
+        """The client has something to send: taken in this loop pass's flush."""
+        if not self.ended:
+            self.db.kick(self)
 
-class LocalWriter:
-    """The client's side of an in-process connection, shaped like the asyncio.StreamWriter a socket gives.
+    def flush(self) -> None:
+        if not self.ended and self.error is None and self.take is not None:
+            msgs = self.take()
+            if msgs:
+                self.db.transmit(self.db.core.receive_local(self.client, msgs, self.db.now()))
 
-    Bytes written go straight to the core (`receive`, as a socket's bytes do) and the core's answers
-    to the connections' handles, so the mail is the same as over TCP: same codec, same routing.
-    """
-
-    def __init__(self, db: "MOOSDB", reader: asyncio.StreamReader):
-        self.db = db
-        self.client = db.core.connect(_LocalTransport(reader), "in-process", db.now())
-        self.closed = False
-
-    def write(self, data: bytes) -> None:
-        if self.closed:
-            raise ConnectionResetError("in-process connection closed")
-        db = self.db
-        db.transmit(db.core.receive(self.client, data, moos_time(db.time_warp)))
-
-    async def drain(self) -> None:
-        if self.closed:
-            raise ConnectionResetError("in-process connection closed")
-
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self.db.transmit(self.db.core.connection_lost(self.client, "closed by client", self.db.now()))
-            self.client.handle.close()
-
-    def is_closing(self) -> bool:
-        return self.closed
+    def disconnect(self) -> None:
+        """Send what is queued (unless the client failed), then close, as a socket client's close does."""
+        self.flush()
+        if not self.ended:
+            self.ended = True
+            reason = f"client failed: {self.error!r}" if self.error else "closed by client"
+            self.db.transmit(self.db.core.connection_lost(self.client, reason, self.db.now()))
 
 
 class MOOSDB:
@@ -128,6 +143,8 @@ class MOOSDB:
         self._server: asyncio.Server | None = None
         self._housekeeping: asyncio.Task | None = None
         self._serving = False
+        self._kicked: dict[LocalLink, None] = {}   # in-process clients with a batch to take
+        self._flush_due = False
 
     @property
     def clients(self) -> dict[str, DBClient]:
@@ -161,12 +178,25 @@ class MOOSDB:
         finally:
             self.close()
 
-    def open_local(self) -> tuple[asyncio.StreamReader, LocalWriter]:
-        """A connection for a client in this process and event loop, without a socket (pAntler --host-db)."""
+    def open_local(self, hello: MOOSMsg) -> LocalLink:
+        """A connection for a client in this process and event loop, without a socket (pAntler --host-db);
+        `hello` is the client's handshake message, answered in the link's `replies`."""
         if not self._serving:
             raise ConnectionRefusedError(f"{self.name} is not serving")
-        reader = asyncio.StreamReader()
-        return reader, LocalWriter(self, reader)
+        return LocalLink(self, hello)
+
+    def kick(self, link: LocalLink) -> None:
+        """Take `link`'s batch later in this loop pass, with every other in-process client's."""
+        self._kicked[link] = None
+        if not self._flush_due:
+            self._flush_due = True
+            asyncio.get_running_loop().call_soon(self._flush_local)
+
+    def _flush_local(self) -> None:
+        self._flush_due = False
+        kicked, self._kicked = self._kicked, {}
+        for link in kicked:
+            link.flush()
 
     def close(self) -> None:
         self._serving = False
