@@ -1,24 +1,40 @@
 """IvP objective functions as dense utility arrays over some domain variables (spec docs/spec/ivp-helm.md §4.2, §4.5)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
 
 import numpy as np
 
 
-@dataclass
 class IvPFunction:
-    """Utilities on the product grid of `vars` (array axes in that order), with priority weight `pwt`."""
+    """Utilities on the product grid of `vars` (array axes in that order), with priority weight `pwt`.
 
-    vars: tuple[str, ...]
-    values: np.ndarray
-    pwt: float = 100.0
+    A function made as a sum of one-dimensional parts, one per variable (what `couple` makes), keeps
+    its `parts`: the solver then works on them alone, and the dense grid is built only if asked for.
+    """
 
-    def __post_init__(self) -> None:
-        if self.values.ndim != len(self.vars):
-            raise ValueError(f"function over {self.vars} needs a {len(self.vars)}-d array")
+    __slots__ = ("vars", "pwt", "parts", "_values")
+
+    def __init__(self, vars: tuple[str, ...], values: np.ndarray | None = None, pwt: float = 100.0, *,
+                 parts: tuple[np.ndarray, ...] | None = None):
+        self.vars, self.pwt, self.parts, self._values = vars, pwt, parts, values
+        if values is None and (parts is None or len(parts) != len(vars)):
+            raise ValueError(f"function over {vars} needs values or one part per variable")
+        if values is not None and values.ndim != len(vars):
+            raise ValueError(f"function over {vars} needs a {len(vars)}-d array")
+        if values is not None and len(vars) == 1:
+            self.parts = (values,)
+
+    @property
+    def values(self) -> np.ndarray:
+        if self._values is None:
+            grids = np.ix_(*self.parts)
+            self._values = functools.reduce(np.add, grids)
+        return self._values
 
     def has_nan(self) -> bool:
+        if self.parts is not None:
+            return any(bool(np.isnan(p).any()) for p in self.parts)
         return bool(np.isnan(self.values).any())
 
 
@@ -34,7 +50,7 @@ def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 5
     """Course x speed: each rescaled to its weight, summed on the product grid, rescaled to 0..100.
 
     The sum is separable, so its range comes from the 1-D parts and the final rescale is folded
-    into them: one outer addition is the only operation on the full grid.
+    into them: the result keeps the parts, and the full grid is built only if someone reads it.
     """
     c = _rescale(f_course.values, course_weight)
     s = _rescale(f_speed.values, speed_weight)
@@ -43,4 +59,4 @@ def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 5
     if span > 0:
         k = 100.0 / span
         c, s = (c - c_lo) * k, (s - s_lo) * k
-    return IvPFunction(f_course.vars + f_speed.vars, c[:, None] + s[None, :], pwt)
+    return IvPFunction(f_course.vars + f_speed.vars, pwt=pwt, parts=(c, s))

@@ -7,31 +7,46 @@ from .domain import IvPDomain
 from .ivp_function import IvPFunction
 
 
-def _normalised(f: IvPFunction) -> np.ndarray:
-    lo, hi = float(f.values.min()), float(f.values.max())
-    v = f.values
-    if hi - lo > 100.0:
-        v = (v - lo) * (100.0 / (hi - lo))
-    return v * f.pwt
+def _scale(f: IvPFunction) -> tuple[float, float]:
+    """(lo, k): the function's utilities as the solver adds them are (u - lo) * k, its range brought to at
+    most 100, then weighted by pwt. A separable function's range comes from its parts (the min of a sum
+    of independent parts is the sum of their mins)."""
+    if f.parts is not None:
+        lo, hi = sum(float(p.min()) for p in f.parts), sum(float(p.max()) for p in f.parts)
+    else:
+        lo, hi = float(f.values.min()), float(f.values.max())
+    return (lo, 100.0 / (hi - lo) * f.pwt) if hi - lo > 100.0 else (0.0, f.pwt)
 
 
 def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
-    """One decision per variable that some function mentions; ties go to the lowest grid index."""
+    """One decision per variable that some function mentions; ties go to the lowest grid index.
+
+    When every function is a sum of one-variable parts, so is their weighted total, and each variable
+    is decided on its own 1-D total (the argmax of a separable sum is the argmaxes of its parts);
+    otherwise the total is built on the product grid of the variables mentioned."""
     used = [f for f in functions if f.pwt > 0]
     names = [n for n in domain.names if any(n in f.vars for f in used)]
     if not names:
         return {}
-    shape = tuple(domain.var(n).npts for n in names)
-    total = np.zeros(shape)
-    for f in used:
-        axes = [names.index(v) for v in f.vars]
-        order = np.argsort(axes)
-        arr = np.transpose(_normalised(f), order)
-        full_shape = [1] * len(names)
-        for ax in sorted(axes):
-            full_shape[ax] = shape[ax]
-        total += arr.reshape(full_shape)
-    index = np.unravel_index(int(np.argmax(total)), shape)
+    if all(f.parts is not None for f in used):
+        totals: dict[str, np.ndarray] = {}
+        for f in used:
+            k = _scale(f)[1]
+            for name, part in zip(f.vars, f.parts):
+                totals[name] = part * k if name not in totals else totals[name] + part * k
+        index = [int(np.argmax(totals[n])) for n in names]
+    else:
+        shape = tuple(domain.var(n).npts for n in names)
+        total = np.zeros(shape)
+        for f in used:
+            lo, k = _scale(f)
+            axes = [names.index(v) for v in f.vars]
+            arr = np.transpose((f.values - lo) * k, np.argsort(axes))
+            full_shape = [1] * len(names)
+            for ax in sorted(axes):
+                full_shape[ax] = shape[ax]
+            total += arr.reshape(full_shape)
+        index = np.unravel_index(int(np.argmax(total)), shape)
     return {n: round(float(domain.var(n).values[i]), 9) for n, i in zip(names, index)}
 
 

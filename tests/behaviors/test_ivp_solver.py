@@ -68,7 +68,7 @@ def test_missing_decision_and_ignored_zero_pwt(domain):
 
 
 arrays = st.integers(1, 4).flatmap(lambda n: st.lists(
-    st.tuples(st.sampled_from(["course", "speed", "both"]), st.floats(0, 200),
+    st.tuples(st.sampled_from(["course", "speed", "both", "coupled"]), st.floats(0, 200),
               st.integers(0, 2**32 - 1)), min_size=n, max_size=n))
 
 
@@ -85,6 +85,10 @@ def test_solver_maximises_weighted_sum(specs):
         elif which == "speed":
             f = IvPFunction(("speed",), rng.uniform(0, 100, 9), pwt)
             full = np.broadcast_to(f.values[None, :], (36, 9))
+        elif which == "coupled":
+            f = couple(IvPFunction(("course",), rng.uniform(0, 300, 36)), IvPFunction(("speed",), rng.uniform(0, 9, 9)),
+                       rng.uniform(0, 100), rng.uniform(0, 100), pwt)
+            full = f.values
         else:
             f = IvPFunction(("speed", "course"), rng.uniform(0, 100, (9, 36)), pwt)
             full = f.values.T
@@ -104,3 +108,20 @@ def test_solver_maximises_weighted_sum(specs):
         assert (i is None) != (j is None)
         axis_best = total[i, :] if j is None else total[:, j]
         assert axis_best.max() == pytest.approx(total.max(), rel=1e-9, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2**32 - 1), st.sampled_from([1.0, 30.0, 100.0, 250.0])), min_size=1, max_size=4))
+def test_separable_functions_decide_as_their_full_grids(specs):
+    """Functions kept as one-variable parts (couple's) are solved on the parts; the decision is the one
+    the same utilities on the full product grid give (integer utilities: no rounding to tell them apart)."""
+    dom = IvPDomain(vars=[parse_domain_line("course:0:359:36"), parse_domain_line("speed:0:4:9")])
+    separable, dense = [], []
+    for seed, pwt in specs:
+        rng = np.random.default_rng(seed)
+        f = IvPFunction(("course", "speed"), pwt=pwt,
+                        parts=(rng.integers(0, 60, 36).astype(float), rng.integers(0, 40, 9).astype(float)))
+        assert f.values.shape == (36, 9) and f.values[3, 4] == f.parts[0][3] + f.parts[1][4]
+        separable.append(f)
+        dense.append(IvPFunction(("course", "speed"), f.values.copy(), pwt))
+    assert solve(dom, separable) == solve(dom, dense)
