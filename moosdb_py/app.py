@@ -69,7 +69,9 @@ class MOOSApp:
         self._started_mono = _time.monotonic()
         self._mail: list[MOOSMsg] = []
         self._stop: asyncio.Event | None = None
-        self._wake: asyncio.Future | None = None   # the tick's sleep, resolved early by stop()
+        self._ticking: asyncio.Future | None = None   # resolved by stop(), or failed by a tick that raised
+        self._tick_timer: asyncio.TimerHandle | None = None
+        self._comms: asyncio.Task | None = None
         self._stopping = False
 
     def _find_config(self) -> ProcessConfig:
@@ -163,30 +165,19 @@ class MOOSApp:
                     next_notice = _time.monotonic() + RETRY_NOTICE_PERIOD
                     print(f"{self.name}: connecting to {self.client.host}:{self.client.port} ... retrying",
                           file=sys.stderr, flush=True)
-            next_tick = next_status = _time.monotonic()
-            while not self._stop.is_set():
-                if comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
-                    comms.result()
-                    raise ConnectionError(f"{self.name}: {self.client.poisoned or 'comms ended'}")
-                mail, self._mail = self._mail, []
-                if mail:
-                    self.on_new_mail(mail)
-                self.iterate()
-                self.iterations += 1
-                now = _time.monotonic()
-                if now >= next_status:
-                    next_status = now + STATUS_PERIOD
-                    self.notify(f"{self.name.upper()}_STATUS", self.status())
-                period = 1.0 / (self.app_tick * self.time_warp)   # AppTick may change
-                next_tick += period
-                if now > next_tick:
-                    self.ticks_missed += int((now - next_tick) / period)
-                    next_tick = now
-                await self._until(next_tick)
+            loop = asyncio.get_running_loop()
+            self._ticking = loop.create_future()
+            self._next_tick = self._next_status = _time.monotonic()
+            self._comms = comms
+            if not self._stop.is_set():
+                self._tick()
+                await self._ticking
             mail, self._mail = self._mail, []
             if mail:   # mail that arrived with the stop request is still handled (pLogger writes it)
                 self.on_new_mail(mail)
         finally:
+            if self._tick_timer is not None:
+                self._tick_timer.cancel()
             self.client.close()
             try:
                 async with asyncio.timeout(2.0):
@@ -194,23 +185,44 @@ class MOOSApp:
             except TimeoutError:
                 comms.cancel()
 
-    async def _until(self, when: float) -> None:
-        """Sleep until monotonic time `when` or a stop: one future and one timer a tick, the least asyncio offers."""
-        loop = asyncio.get_running_loop()
-        self._wake = wake = loop.create_future()
-        timer = loop.call_at(loop.time() + when - _time.monotonic(), resolve, wake)
+    def _tick(self) -> None:
+        """One AppTick (mail, iterate, status), then a timer for the next: a plain loop callback, no task to
+        wake, the cheapest periodic work asyncio offers. What it raises ends `run_async` with it."""
+        self._tick_timer = None
         try:
-            await wake
-        finally:
-            timer.cancel()
-            self._wake = None
+            if self._comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
+                self._comms.result()
+                raise ConnectionError(f"{self.name}: {self.client.poisoned or 'comms ended'}")
+            mail, self._mail = self._mail, []
+            if mail:
+                self.on_new_mail(mail)
+            self.iterate()
+            self.iterations += 1
+            now = _time.monotonic()
+            if now >= self._next_status:
+                self._next_status = now + STATUS_PERIOD
+                self.notify(f"{self.name.upper()}_STATUS", self.status())
+            period = 1.0 / (self.app_tick * self.time_warp)   # AppTick may change
+            self._next_tick += period
+            if now > self._next_tick:
+                self.ticks_missed += int((now - self._next_tick) / period)
+                self._next_tick = now
+            if not self._stopping:
+                loop = asyncio.get_running_loop()
+                self._tick_timer = loop.call_at(loop.time() + self._next_tick - now, self._tick)
+        except Exception as exc:
+            if not self._ticking.done():
+                self._ticking.set_exception(exc)
 
     def stop(self) -> None:
         self._stopping = True
         if self._stop is not None:
             self._stop.set()
-        if self._wake is not None:
-            resolve(self._wake)
+        if self._tick_timer is not None:
+            self._tick_timer.cancel()
+            self._tick_timer = None
+        if self._ticking is not None:
+            resolve(self._ticking)
 
     def run(self) -> None:
         async def runner():

@@ -49,6 +49,8 @@ def string_field(data: bytes) -> bytes:
 def as_on_the_wire(msg: MOOSMsg) -> None:
     """Make the message's text what a reader decodes from `encode_message` of it (text outside latin-1
     arrives as its UTF-8 bytes read as latin-1): how the in-process path gives the mail a socket would."""
+    if (msg.key + msg.source + msg.source_aux + msg.string).isascii():
+        return
     for name in ("key", "source", "source_aux", "string"):
         value = getattr(msg, name)
         if not value.isascii():
