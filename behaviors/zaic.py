@@ -32,6 +32,9 @@ def _peak(var: DomainVar, c: PeakComponent, value_wrap: bool) -> np.ndarray:
     pw, bw = max(c.peakwidth, 0.0), max(c.basewidth, 0.0)
     sd = min(c.summitdelta, c.maxutil - c.minutil) if pw > 0 else 0.0
     top = c.maxutil - sd
+    if bw > 0 and sd >= 0:      # the usual shape is piecewise linear in d: one interpolation
+        xp, fp = ((0.0, pw, pw + bw), (c.maxutil, top, c.minutil)) if pw > 0 else ((0.0, bw), (c.maxutil, c.minutil))
+        return np.interp(d, xp, fp)
     u = np.full(v.shape, c.minutil)
     if bw > 0:
         u = np.where(d <= pw + bw, top - (top - c.minutil) * (d - pw) / bw, u)
@@ -46,7 +49,27 @@ def _peak(var: DomainVar, c: PeakComponent, value_wrap: bool) -> np.ndarray:
 
 def zaic_peak(var: DomainVar, components: list[PeakComponent], value_wrap: bool = False,
               max_mode: bool = True) -> np.ndarray:
-    """Peaks combined by max (default) or summed, then "summit insist" for peaks between grid points."""
+    """Peaks combined by max (default) or summed, then "summit insist" for peaks between grid points.
+
+    Read-only: the same peaks on the same grid give the same array, kept for the next call (a
+    behaviour asks for its speed peak every helm iteration, mostly with the same cruise speed)."""
+    key = (var.low, var.high, var.npts, tuple(components), value_wrap, max_mode)
+    u = _PEAKS.get(key)
+    if u is None:
+        u = _combined_peak(var, components, value_wrap, max_mode)
+        u.setflags(write=False)
+        if len(_PEAKS) >= PEAK_CACHE_SIZE:
+            del _PEAKS[next(iter(_PEAKS))]     # the oldest
+        _PEAKS[key] = u
+    return u
+
+
+PEAK_CACHE_SIZE = 256
+_PEAKS: dict[tuple, np.ndarray] = {}
+
+
+def _combined_peak(var: DomainVar, components: list[PeakComponent], value_wrap: bool,
+                   max_mode: bool) -> np.ndarray:
     u = _peak(var, components[0], value_wrap)
     for c in components[1:]:      # pairwise, as np.max / np.sum over the stacked parts, without the stack
         u = np.maximum(u, _peak(var, c, value_wrap)) if max_mode else u + _peak(var, c, value_wrap)

@@ -62,6 +62,11 @@ class MOOSMsg:
     def notification(cls, key: str, value: float | str | bytes, *, time: float, source: str = "",
                      source_aux: str = "", msg_id: int = -1) -> "MOOSMsg":
         """A notify carrying a double, string or binary value, typed as the C++ client types it."""
+        kind = type(value)
+        if kind is float:     # the usual cases first, at the cost of one type() call
+            return cls(NOTIFY, DOUBLE, key, value, "", b"", source, source_aux, "", time, msg_id)
+        if kind is str:
+            return cls(NOTIFY, STRING, key, -1.0, value, b"", source, source_aux, "", time, msg_id)
         if isinstance(value, (bytes, bytearray, memoryview)):
             return cls(NOTIFY, BINARY, key, binary=bytes(value), source=source, source_aux=source_aux,
                        time=time, id=msg_id)
