@@ -115,7 +115,7 @@ async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, 
                     start_new_session=True))
                 watcher = MOOSClient("uBenchWatch", port=port, time_warp=warp)
                 watcher.register_wildcard("*_STATUS")
-                watcher.register("IVPHELM_STATE")
+                watcher.register("IVPHELM_STATE", 0.5 * warp)   # that the helm is up, not its every iteration
                 watchers.append(watcher)
                 tasks.append(asyncio.create_task(watcher.run()))
             deadline = time.monotonic() + 60 + 5 * vessels

@@ -167,7 +167,9 @@ class MOOSApp:
                           file=sys.stderr, flush=True)
             loop = asyncio.get_running_loop()
             self._ticking = loop.create_future()
-            self._next_tick = self._next_status = _time.monotonic()
+            now = _time.monotonic()
+            self._next_status = now
+            self._next_tick = now // self._tick_period() * self._tick_period()
             self._comms = comms
             if not self._stop.is_set():
                 self._tick()
@@ -185,9 +187,16 @@ class MOOSApp:
             except TimeoutError:
                 comms.cancel()
 
+    def _tick_period(self) -> float:
+        return 1.0 / (self.app_tick * self.time_warp)
+
     def _tick(self) -> None:
         """One AppTick (mail, iterate, status), then a timer for the next: a plain loop callback, no task to
-        wake, the cheapest periodic work asyncio offers. What it raises ends `run_async` with it."""
+        wake, the cheapest periodic work asyncio offers. What it raises ends `run_async` with it.
+
+        Ticks fall on multiples of the period (of the monotonic clock), so apps sharing a process wake
+        together where their periods meet (pAntler --one-process): fewer loop passes. A late tick counts
+        the periods it missed and waits for the next multiple."""
         self._tick_timer = None
         try:
             if self._comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
@@ -202,11 +211,12 @@ class MOOSApp:
             if now >= self._next_status:
                 self._next_status = now + STATUS_PERIOD
                 self.notify(f"{self.name.upper()}_STATUS", self.status())
-            period = 1.0 / (self.app_tick * self.time_warp)   # AppTick may change
+            period = self._tick_period()   # AppTick may change
             self._next_tick += period
-            if now > self._next_tick:
-                self.ticks_missed += int((now - self._next_tick) / period)
-                self._next_tick = now
+            if now >= self._next_tick:
+                late = int((now - self._next_tick) / period)
+                self.ticks_missed += late
+                self._next_tick += (late + 1) * period
             if not self._stopping:
                 loop = asyncio.get_running_loop()
                 self._tick_timer = loop.call_at(loop.time() + self._next_tick - now, self._tick)
