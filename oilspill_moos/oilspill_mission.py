@@ -103,7 +103,7 @@ class OilspillMission:
             self.launch(community)
 
     def launch(self, community: Community) -> None:
-        args = ["pAntler", community.moos_file, "--quiet"] + (["--one-process"] if self.one_process else [])
+        args = ["pAntler", community.moos_file, "--quiet"] + (["--one-process", "--host-db"] if self.one_process else [])
         log = open(self.folder / "logs" / f"antler_{community.name}.txt", "ab")
         community.process = subprocess.Popen([str(Path(sys.executable).parent / args[0]), *args[1:]],
                                              cwd=self.folder, stdout=log, stderr=subprocess.STDOUT,
@@ -174,7 +174,7 @@ class Observer:
         self.t0 = self.client.moos_time()  # mission seconds count from here, on every process's warped clock
 
     def on_connect(self) -> None:
-        for key in ("OILSPILL_PHASE", "OILSPILL_STATUS", "OILSPILL_BOUNDARY", "VIEW_POLYGON", "NODE_REPORT",
+        for key in ("OILSPILL_PHASE", "OILSPILL_STATUS", "OILSPILL_BOUNDARY", "OILSPILL_REGION", "NODE_REPORT",
                     "OILSPILL_DROPPED", "OILSPILL_REJOINED", "OILSPILL_WARNING"):
             self.client.register(key)
         self.client.register_wildcard("OIL_PATH_UPDATES_*")
@@ -202,10 +202,11 @@ class Observer:
                 self.note("phase", value, msg.time)
             elif msg.key == "OILSPILL_STATUS":
                 self.status = value
-            elif msg.key == "OILSPILL_BOUNDARY":
-                self.boundaries.append(parse_polygon_spec(value))
-            elif msg.key == "VIEW_POLYGON" and "label=standoff" in value:
-                self.regions.append(parse_polygon_spec(value))
+            elif msg.key in ("OILSPILL_BOUNDARY", "OILSPILL_REGION"):
+                kept = self.boundaries if msg.key == "OILSPILL_BOUNDARY" else self.regions
+                polygon = parse_polygon_spec(value)
+                if not kept or kept[-1] != polygon:    # the DB sends the one in force again on a reconnection
+                    kept.append(polygon)
             elif msg.key.startswith(("OIL_PATH_UPDATES_", "STARTING_POSITION_UPDATES_")):
                 kind, _, name = msg.key.partition("_UPDATES_")
                 points, _ = parse_points_update(value)

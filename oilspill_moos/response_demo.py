@@ -156,40 +156,60 @@ class ResponseRun:
     def mission_s(self) -> float:
         return self.observer.client.moos_time() - self.observer.t0
 
-    def sample(self) -> dict:
-        """Coverage and oil inside the loop now; printed every 15 mission minutes."""
-        t = self.mission_s()
+    def measure_sample(self, t: float, recent: dict, moos_now: float, region) -> dict:
+        """Coverage and oil inside the loop at mission second `t`, from the recent tracks of the patrolling
+        vessels and the loop in force (pure: runs off the event loop)."""
         spill = self.truth.at(t)
-        fleet = patrolling(self.observer)
-        now = positions_at({n: self.observer.tracks[n][-20:] for n in fleet if n in self.observer.tracks},
-                           self.observer.client.moos_time(), stale=60.0)
+        now = positions_at(recent, moos_now, stale=60.0)
         entry = {"mission_s": round(t, 1), "hour": round(self.truth.hour(t), 3), "patrolling": len(now),
                  "coverage": round(perimeter_coverage(spill, list(now.values()), self.reach), 4)}
-        if self.observer.regions:
-            entry["oil_inside"] = round(oil_containment(spill, self.observer.regions[-1]).share_inside, 4)
+        if region is not None:
+            entry["oil_inside"] = round(oil_containment(spill, region).share_inside, 4)
+        return entry
+
+    def _sampled(self, entry: dict) -> dict:
+        """Keep a sample; print it every 15 mission minutes."""
         self.samples.append(entry)
+        t = entry["mission_s"]
         if t - self.last_print >= 900:
             self.last_print = t
             inside = f", true oil inside the loop {100 * entry['oil_inside']:.0f} %" if "oil_inside" in entry else ""
             self.observer.say("measure", f"{100 * entry['coverage']:.0f} % of the true perimeter within "
-                                         f"{self.reach / 1000:g} km of a patrolling vessel ({len(now)} patrolling)"
-                                         f"{inside}")
+                                         f"{self.reach / 1000:g} km of a patrolling vessel "
+                                         f"({entry['patrolling']} patrolling){inside}")
         return entry
 
     async def sampler(self, every_s: float) -> None:
-        """A sample every `every_s` mission seconds, for as long as the run lasts."""
+        """A sample every `every_s` mission seconds, for as long as the run lasts. The measures are
+        computed in a worker thread from a snapshot, so the observer's client keeps its DB
+        connection alive meanwhile (a blocked event loop sends no timing message: the DB's client
+        time-out drops it)."""
         next_at = 0.0
         while True:
             if self.mission_s() >= next_at:
-                self.sample()
+                t, observer = self.mission_s(), self.observer
+                recent = {n: observer.tracks[n][-20:] for n in patrolling(observer) if n in observer.tracks}
+                region = observer.regions[-1] if observer.regions else None
+                self._sampled(await asyncio.to_thread(self.measure_sample, t, recent, observer.client.moos_time(),
+                                                      region))
                 next_at = self.mission_s() + every_s
             await asyncio.sleep(0.2)
 
-    def close_cycle(self, cycle: dict, end_s: float) -> None:
-        """The cycle's measures once its patrol time is over (every value JSON-ready)."""
-        t0 = self.observer.t0
-        tracks = {n: [(p[0] - t0, p[1], p[2]) for p in track] for n, track in self.observer.tracks.items()}
-        patrols = {n: [list(p) for p in points] for n, points in self.observer.loops.items()}
+    async def close_cycle(self, cycle: dict, end_s: float) -> None:
+        """The cycle's measures once its patrol time is over (every value JSON-ready), computed in a
+        worker thread from a snapshot of what the observer holds (see `sampler`)."""
+        observer = self.observer
+        tracks = {n: list(track) for n, track in observer.tracks.items()}
+        patrols = {n: [list(p) for p in points] for n, points in observer.loops.items()}
+        region = observer.regions[-1] if observer.regions else None
+        samples = list(self.samples)
+        await asyncio.to_thread(self.cycle_measures, cycle, end_s, observer.t0, tracks, patrols, region, samples)
+        self.cycles.append(cycle)
+
+    def cycle_measures(self, cycle: dict, end_s: float, t0: float, tracks: dict, patrols: dict, region,
+                       samples: list[dict]) -> None:
+        """Fill in `cycle`'s measures (pure: runs off the event loop)."""
+        tracks = {n: [(p[0] - t0, p[1], p[2]) for p in track] for n, track in tracks.items()}
         manned = manned_at(tracks, patrols, cycle["push_s"], CAPTURE)
         cycle["patrols"] = {n: np.round(np.asarray(p), 0).tolist() for n, p in patrols.items()}
         cycle["manned_by"] = manned
@@ -197,10 +217,9 @@ class ResponseRun:
         cycle["all_manned_s"] = round(max(done) - cycle["push_s"], 1) if len(done) == len(manned) and done else None
         spill = self.truth.at(end_s)
         patrol_from = cycle["oil_path_s"]
-        window = [s for s in self.samples if patrol_from <= s["mission_s"] <= end_s]
+        window = [s for s in samples if patrol_from <= s["mission_s"] <= end_s]
         cycle["coverage_mean"] = round(float(np.mean([s["coverage"] for s in window])), 4) if window else None
         cycle["end_s"] = round(end_s, 1)
-        region = self.observer.regions[-1] if self.observer.regions else None
         if region is not None:
             gap, where = largest_revisit_gap(region, tracks, patrol_from, end_s, self.reach, spacing=250.0, step=30.0)
             cycle["revisit_gap_s"], cycle["revisit_gap_at"] = round(gap, 0), [round(v) for v in where]
@@ -209,7 +228,6 @@ class ResponseRun:
         cycle["offsets"] = {n: {k: round(v, 3 if k == "over_oil" else 0) for k, v in vars(o).items()}
                             for n, o in patrol_offsets(spill, patrols, spacing=200.0).items()}
         cycle["truth_end"] = geometry_rings(spill)
-        self.cycles.append(cycle)
 
 
 def transit_bound(observer: Observer, plan_s: float, top_speed: float) -> tuple[float, float]:
@@ -311,7 +329,7 @@ async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle
                 cycle_end = planned[k + 1].push_s if k + 1 < len(planned) else end_s
                 await wait_for(lambda: run.mission_s() >= cycle_end, step_timeout, f"cycle {forecast.number}: patrol",
                                mission, every=1e9)
-                run.close_cycle(cycle, run.mission_s())
+                await run.close_cycle(cycle, run.mission_s())
                 say_cycle(observer, run.cycles[-1])
             await pusher.close()
         finally:

@@ -291,6 +291,7 @@ class Coordinator:
         self.arrived, self.patrolling = set(), set()
         self._set_phase(STARTING_POSITION, now)
         self._post("VIEW_POLYGON", polygon_string(plan.region, "standoff", edge_color="orange"))
+        self._post("OILSPILL_REGION", polygon_string(plan.region, "standoff"))
         for name, start in plan.starts.items():
             suffix = name.upper()
             vehicle = self.vehicles[name]
@@ -465,6 +466,8 @@ PUBLICATIONS:
                                [valid=<utc s>,]uncertainty=<m>,source=<name>,pts={x,y:...}
                                (local metres; the horizons of one forecast share the cycle)
   VIEW_POLYGON                 the stand-off loop in force (label=standoff), for viewers
+  OILSPILL_REGION              the same loop under a name of its own, so the DB keeps it (a client
+                               that reconnects gets it back; VIEW_POLYGON holds whichever polygon came last)
   OILSPILL_PHASE               STATION-KEEPING | STARTING-POSITION | OIL-PATH
   STATION_KEEP_ALL, STATION_KEEP_<V>       true on a new boundary, false when moving on
   OILSPILL_PHASE_ALL, OILSPILL_PHASE_<V>   the phase each vehicle should be in
