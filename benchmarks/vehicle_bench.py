@@ -1,6 +1,7 @@
 """CPU a vehicle community costs per simulated second, and the largest fleet that keeps its AppTicks.
 
     python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one]
+    python benchmarks/vehicle_bench.py --oilspill 8 --warps 20 [--demo-ticks]   # the demo's vessels and shoreside
 
 Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
 pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process
@@ -151,15 +152,57 @@ async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, 
                 await asyncio.wait(tasks, timeout=5)
 
 
+async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str, str]) -> tuple[float, float]:
+    """(CPU ms per oil-spill vessel, CPU ms of the shoreside) per simulated second: missions/oilspill's
+    communities (oilspill_mission.OilspillMission, each pAntler --one-process --host-db), deployed."""
+    from oilspill_moos.oilspill_mission import Observer, OilspillMission, wait_for
+
+    with tempfile.TemporaryDirectory(prefix="vehicle_bench_oilspill_") as tmp:
+        mission = OilspillMission(Path(tmp), vehicles=vessels, warp=warp, extra=extra)
+        with mission:
+            observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
+            task = asyncio.create_task(observer.client.run())
+            try:
+                timeout = 60 + 5 * vessels
+                assert await observer.client.wait_connected(timeout), "the shoreside MOOSDB did not come up"
+                await wait_for(lambda: observer.vehicles_seen() >= set(mission.fleet), timeout,
+                               "every vessel's NODE_REPORT", mission)
+                await observer.deploy(mission.fleet, timeout, mission)
+                await asyncio.sleep(SETTLE)
+                pids = {c.name: c.process.pid for c in mission.communities}
+                cpu0, t0 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
+                await asyncio.sleep(window)
+                cpu1, t1 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
+            finally:
+                observer.client.close()
+                await asyncio.wait([task], timeout=5)
+    simulated = (t1 - t0) * warp
+    fleet = sum(cpu1[n] - cpu0[n] for n in mission.fleet)
+    shore = cpu1["shoreside"] - cpu0["shoreside"]
+    return 1000 * fleet / simulated / vessels, 1000 * shore / simulated
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fleets", default="1,10,30", help="vessel counts to measure at warp 10")
     parser.add_argument("--warps", default="10,20", help="warps at which to find the largest fleet that keeps up")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--one", action="store_true", help="one vessel at warp 10 only")
+    parser.add_argument("--oilspill", type=int, metavar="N",
+                        help="instead: N vessels of missions/oilspill (the demo's, with contact manager, brokers, "
+                             "pShare...) and their shoreside, deployed, at the first of --warps")
+    parser.add_argument("--demo-ticks", action="store_true",
+                        help="with --oilspill: the simulator/PID and helm at 4 and 2 Hz, as in the real-scale demo")
     parser.add_argument("--sockets", action="store_true",
                         help="the MOOSDB as a child process, apps over loopback TCP (pAntler --one-process alone)")
     args = parser.parse_args()
+    if args.oilspill:
+        warp = float(args.warps.split(",")[0])
+        ticks = {"SIM_TICK": "4", "HELM_TICK": "2"} if args.demo_ticks else {}
+        vessel_ms, shore_ms = asyncio.run(run_oilspill(args.oilspill, warp, args.window, ticks))
+        print(f"{args.oilspill:3d} oil-spill vessel(s) at warp {warp:g}: {vessel_ms:7.2f} ms CPU per vessel per "
+              f"simulated second; shoreside {shore_ms:7.2f} ms per simulated second", flush=True)
+        return
     modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
     fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]
     kept_up: dict[float, dict[int, bool]] = {10.0: {}}
