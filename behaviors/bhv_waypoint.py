@@ -4,6 +4,8 @@ Spec: docs/spec/ivp-helm.md §5 (advance rules §5.2, completion §5.3, wptflags
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from moosdb_py.formats import FormatError, parse_pairs
@@ -342,18 +344,17 @@ class BHV_Waypoint(IvPBehavior):
             anchor = self.lead_start
         else:
             return nxt
-        a, n, o = np.array(anchor), np.array(nxt), np.array((osx, osy))
-        leg = n - a
-        length = float(np.hypot(*leg))
+        (ax, ay), (nx, ny) = anchor, nxt      # plain floats: numpy on 2-vectors costs more than the sums
+        lx, ly = nx - ax, ny - ay
+        length = math.hypot(lx, ly)
         if length < 1e-9:
             return nxt
-        t = float(np.clip(np.dot(o - a, leg) / length**2, 0.0, 1.0))
-        foot = a + t * leg
-        e = float(np.hypot(*(o - foot)))
+        t = min(max(((osx - ax) * lx + (osy - ay) * ly) / length**2, 0.0), 1.0)
+        fx, fy = ax + t * lx, ay + t * ly
+        e = math.hypot(osx - fx, osy - fy)
         factor = 1.0 + 2.0 * (1.0 - e / self.lead_damper) if e < self.lead_damper else 1.0
-        step = min(self.lead * factor, float(np.hypot(*(n - foot))))
-        x, y = foot + step * leg / length
-        return float(x), float(y)
+        step = min(self.lead * factor, math.hypot(nx - fx, ny - fy))
+        return float(fx + step * lx / length), float(fy + step * ly / length)
 
     def cruise_speed(self, osx: float, osy: float) -> float:
         cruise = self.speed_alt if self.use_alt_speed and self.speed_alt >= 0 else self.speed
