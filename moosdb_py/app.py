@@ -198,6 +198,7 @@ class MOOSApp:
         together where their periods meet (pAntler --one-process): fewer loop passes. A late tick counts
         the periods it missed and waits for the next multiple."""
         self._tick_timer = None
+        self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: routed then)
         try:
             if self._comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
                 self._comms.result()
@@ -223,6 +224,8 @@ class MOOSApp:
         except Exception as exc:
             if not self._ticking.done():
                 self._ticking.set_exception(exc)
+        finally:
+            self.client.send_held()
 
     def stop(self) -> None:
         self._stopping = True

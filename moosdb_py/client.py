@@ -65,6 +65,8 @@ class MOOSClient:
         self._closing = False
         self._last_timing = -1e300
         self._kick: Callable[[], None] | None = None   # the session's "something to send" (a post calls it)
+        self._send_now: Callable[[], None] | None = None   # the session's "send the outbox now"
+        self._holding = False       # posts wait for `send_held` (a MOOSApp's tick: one batch per tick)
         self._wake: asyncio.Future | None = None   # the session's sleep, resolved early by close()
         self._connected_event: asyncio.Event | None = None
         self._closed_event: asyncio.Event | None = None
@@ -96,7 +98,7 @@ class MOOSClient:
             finally:
                 self.connected = False
                 self._connected_event.clear()
-                self._kick = None
+                self._kick = self._send_now = None
             if not self._closing:
                 try:
                     async with asyncio.timeout(self.reconnect_interval):
@@ -160,7 +162,7 @@ class MOOSClient:
             reply = codec.decode_packet(packet)
             self._welcomed(reply[0] if reply else None)
             writing = asyncio.create_task(self._write_loop(writer))
-            self._kick = self._wake_up
+            self._kick = self._send_now = self._wake_up
             try:
                 self._deliver(framer)
                 while True:
@@ -185,7 +187,7 @@ class MOOSClient:
             self._welcomed(link.replies[0] if link.replies else None)
             link.attach(self._next_batch, self._deliver_mail)
             self._deliver_mail(link.replies[1:])
-            self._kick = link.kick
+            self._kick, self._send_now = link.kick, link.flush
             loop = asyncio.get_running_loop()
             while not self._closing:
                 link.kick()
@@ -271,8 +273,18 @@ class MOOSClient:
         if len(outbox) > OUTBOX_LIMIT:
             log.warning("%s: outbox over %d messages, dropping the oldest half", self.name, OUTBOX_LIMIT)
             del outbox[:len(outbox) // 2]
-        if self._kick is not None:
+        if self._kick is not None and not self._holding:
             self._kick()
+
+    def hold_posts(self) -> None:
+        """Keep posts in the outbox until `send_held` (no wake-up per post)."""
+        self._holding = True
+
+    def send_held(self) -> None:
+        """Send what was held, at once: in-process, the DB routes it before this returns."""
+        self._holding = False
+        if self._outbox and self._send_now is not None:
+            self._send_now()
 
     def _apply_subscriptions(self) -> None:
         for key, interval in self.registrations.items():
