@@ -195,8 +195,8 @@ class MOOSApp:
         wake, the cheapest periodic work asyncio offers. What it raises ends `run_async` with it.
 
         Ticks fall on multiples of the period (of the monotonic clock), so apps sharing a process wake
-        together where their periods meet (pAntler --one-process): fewer loop passes. A late tick counts
-        the periods it missed and waits for the next multiple."""
+        together where their periods meet (pAntler --one-process): fewer loop passes. When late, the
+        latest tick due runs at once and the whole periods before it count as missed."""
         self._tick_timer = None
         self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: routed then)
         try:
@@ -214,10 +214,10 @@ class MOOSApp:
                 self.notify(f"{self.name.upper()}_STATUS", self.status())
             period = self._tick_period()   # AppTick may change
             self._next_tick += period
-            if now >= self._next_tick:
+            if now >= self._next_tick:   # late: the latest tick due runs at once, whole periods before it missed
                 late = int((now - self._next_tick) / period)
                 self.ticks_missed += late
-                self._next_tick += (late + 1) * period
+                self._next_tick += late * period
             if not self._stopping:
                 loop = asyncio.get_running_loop()
                 self._tick_timer = loop.call_at(loop.time() + self._next_tick - now, self._tick)
