@@ -147,3 +147,25 @@ def test_an_app_whose_comms_die_fails_instead_of_running_deaf(moosdb_server):
             await poking
     with pytest.raises(KeyError, match="COUNTER_RESET"):
         asyncio.run(scenario())
+
+
+def test_every_apptick_period_is_either_iterated_or_counted_missed(moosdb_server, tmp_path):
+    """An iteration slower than the AppTick period: each period due is run (a late one at once) or
+    counted in TicksMissed, none dropped silently, whatever the machine's load."""
+    class Slow(Counter):
+        def iterate(self):
+            time.sleep(0.07)          # 1.4 periods of AppTick 20
+            super().iterate()
+
+    async def scenario():
+        app = Slow(_mission(tmp_path, moosdb_server.port, "AppTick = 20", warp=1), "counter2")
+        running = asyncio.create_task(app.run_async())
+        await async_wait_until(lambda: app.iterations >= 1)
+        start, first, missed = time.monotonic(), app.iterations, app.ticks_missed
+        await async_wait_until(lambda: app.iterations >= first + 12, timeout=10)
+        periods = (time.monotonic() - start) / 0.05
+        accounted = app.iterations - first + app.ticks_missed - missed
+        app.stop()
+        await asyncio.wait_for(running, 5)
+        assert app.ticks_missed > missed and abs(accounted - periods) <= 2.5
+    asyncio.run(scenario())
