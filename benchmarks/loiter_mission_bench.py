@@ -3,7 +3,8 @@ deprecated uSimMarine / pMarinePID of the issue's mission; see tests/corpus_loit
 stack: metres each vessel covers in the first 900 simulated seconds after DEPLOY, with the
 BHV_AvoidCollision block live and with it removed, against the C++ vessels' 1,025-1,037 m
 (avoidance removed, issue 15). `--v22` adds the corpus's own uSimMarineV22 / pMarinePIDV22 for
-comparison. "keep-up" is the slowest vessel's NAV_X posts per simulated second against the 10 its
+comparison. "min sep m" is the closest two vessels came (vehicles 1 and 2 of the shore broker swap
+loiter regions every 180 s, head-on). "keep-up" is the slowest vessel's NAV_X posts per simulated second against the 10 its
 simulator posts at AppTick 10 (the deprecated one posts every iteration, V22 every second one).
 
 Run: nice -n 10 .venv/bin/python benchmarks/loiter_mission_bench.py [--warp 10] [--seconds 900] [--v22]
@@ -19,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from corpus_loiter import CPP_DISTANCE_M, M2_BERTA, VEHICLES, LoiterMission, distances, fly  # noqa: E402
+from corpus_loiter import CPP_DISTANCE_M, M2_BERTA, VEHICLES, LoiterMission, closest_approach, distances, fly  # noqa: E402
 from moosdb_py.alog import read_alog  # noqa: E402
 
 
@@ -37,6 +38,7 @@ def run(folder: Path, warp: float, seconds: float, deprecated: bool, avoid: bool
     with mission:
         flown = asyncio.run(fly(mission, seconds + 5.0))
     return {"distances": distances(mission, seconds), "keep_up": keep_up(mission, 10.0 if deprecated else 5.0),
+            "closest": closest_approach(mission, seconds),
             "wall": time.monotonic() - began, "clients": flown["clients"]}
 
 
@@ -56,14 +58,15 @@ def main(argv: list[str] | None = None) -> None:
     print(f"m2_berta, 4 vessels, {args.seconds:g} simulated s after DEPLOY, time warp {args.warp:g}; "
           f"C++ (avoidance removed): {CPP_DISTANCE_M[0]:,.0f}-{CPP_DISTANCE_M[1]:,.0f} m")
     print(f"{'simulator':<14} {'avoidance':<9} " + " ".join(f"{n:>7}" for n in VEHICLES)
-          + f" {'mean':>7} {'vs C++':>7} {'keep-up':>7} {'wall s':>6}")
+          + f" {'mean':>7} {'vs C++':>7} {'min sep m':>9} {'keep-up':>7} {'wall s':>6}")
     mid = sum(CPP_DISTANCE_M) / 2
     for sim, deprecated, avoid in cases:
         r = run(base / f"{sim}_{'avoid' if avoid else 'noavoid'}", args.warp, args.seconds, deprecated, avoid)
         d = r["distances"]
         mean = sum(d.values()) / len(d)
         print(f"{sim:<14} {'on' if avoid else 'removed':<9} " + " ".join(f"{d[n]:>7.0f}" for n in VEHICLES)
-              + f" {mean:>7.0f} {100 * (mean / mid - 1):>+6.1f}% {r['keep_up']:>7.2f} {r['wall']:>6.0f}", flush=True)
+              + f" {mean:>7.0f} {100 * (mean / mid - 1):>+6.1f}% {r['closest']:>9.1f} {r['keep_up']:>7.2f}"
+              + f" {r['wall']:>6.0f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ Used by benchmarks/loiter_mission_bench.py and tests/oilspill_moos/test_corpus_l
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 import os
 import re
@@ -27,6 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from helpers import CORPUS, free_port
+import numpy as np
+
 from moosdb_py.alog import read_alog
 from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
@@ -207,3 +210,19 @@ def distances(mission: LoiterMission, seconds: float) -> dict[str, float]:
         track = [(xs[t], ys[t]) for t in sorted(xs) if t in ys and deploy <= t <= deploy + seconds]
         out[v.name] = sum(math.dist(a, b) for a, b in zip(track, track[1:]))
     return out
+
+
+def closest_approach(mission: LoiterMission, seconds: float) -> float:
+    """The least distance between any two vehicles while flying (their NAV_X/NAV_Y on the MOOS clock,
+    interpolated every 0.5 s over the span all of them logged)."""
+    tracks = []
+    for v in mission.vehicles:
+        alog = read_alog(mission.alog(v.name))
+        deploy = alog.log_start + next(e.time for e in alog.entries if e.key == "DEPLOY" and str(e.value).lower() == "true")
+        xs = {alog.log_start + e.time: e.value for e in alog.entries if e.key == "NAV_X"}
+        ys = {alog.log_start + e.time: e.value for e in alog.entries if e.key == "NAV_Y"}
+        times = np.array(sorted(t for t in xs if t in ys and t <= deploy + seconds))
+        tracks.append((times, np.array([xs[t] for t in times]), np.array([ys[t] for t in times])))
+    grid = np.arange(max(t[0][0] for t in tracks), min(t[0][-1] for t in tracks), 0.5)
+    at = [(np.interp(grid, t, x), np.interp(grid, t, y)) for t, x, y in tracks]
+    return float(min(np.hypot(a[0] - b[0], a[1] - b[1]).min() for a, b in itertools.combinations(at, 2)))

@@ -14,7 +14,7 @@ import numpy as np
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_float, read_params
 from moosdb_py.formats import FormatError, format_number, parse_bool
-from oilspill_moos.geodesy import LocalGrid, mission_grid
+from moosdb_py.geodesy import LocalGrid, mission_grid
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
 

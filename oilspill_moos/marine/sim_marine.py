@@ -16,7 +16,7 @@ import numpy as np
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import format_number
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_bool, parse_float, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 
 log = logging.getLogger("oilspill_moos.marine.sim_marine")
 
