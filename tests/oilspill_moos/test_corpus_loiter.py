@@ -30,11 +30,16 @@ def test_the_loiter_mission_launches_every_app_and_the_vessels_move(tmp_path):
         assert unlaunched <= NOT_OURS, (c.name, unlaunched)
         assert runs - NOT_OURS <= flown["clients"][c.name], (c.name, sorted(runs - NOT_OURS - flown["clients"][c.name]))
     assert {"uFldNodeComms", "pRealm"} <= flown["clients"]["shoreside"]
+    spawned = 0
     for v in mission.vehicles:
         assert {"pContactMgrV20", "pRealm", "uSimMarine", "pMarinePID"} <= flown["clients"][v.name]
         alog = read_alog(mission.alog(v.name))
         assert any(str(r).startswith("id=ac_,") for r in alog.values("BCM_ALERT_REQUEST")), v.name
         assert not alog.values("BHV_ERROR"), alog.values("BHV_ERROR")
+        spawned += sum("event=spawn" in str(e) for e in alog.values("IVPHELM_LIFE_EVENT"))
+        # the contacts' reports carry only LAT/LON (coord_policy_global): the helm must place them
+        assert not [w for w in alog.values("BHV_WARNING") if "info not found" in str(w)], v.name
         assert "ACTIVE:LOITERING" in alog.values("MODE"), v.name
+    assert spawned, "no BHV_AvoidCollision was spawned"
     moved = distances(mission, FLIGHT_S)
     assert all(d > 20.0 for d in moved.values()), moved      # 1.4 m/s less the start: about 40 m
