@@ -26,7 +26,7 @@ from moosdb_py.alog import read_alog  # noqa: E402
 
 def keep_up(mission: LoiterMission, nav_per_s: float) -> float:
     rates = []
-    for v in mission.vehicles:
+    for v in mission.fleet.values():
         times = [e.time for e in read_alog(mission.alog(v.name)).entries if e.key == "NAV_X"]
         rates.append((len(times) - 1) / (times[-1] - times[0]))
     return min(rates) / nav_per_s

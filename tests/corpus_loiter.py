@@ -17,14 +17,10 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
-import os
 import re
-import signal
 import socket
-import subprocess
-import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from helpers import CORPUS, free_port
@@ -33,9 +29,9 @@ import numpy as np
 from moosdb_py.alog import read_alog
 from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
+from oilspill_moos.oilspill_mission import Community, OilspillMission
 
 M2_BERTA = CORPUS / "m2_berta"
-BIN = Path(sys.executable).parent
 # name: (START_POS, LOITER_POS). abe's are the corpus README's; the shoreside's uTimerScript moves
 # vehicles 1 and 2's loiter centres to about (0..5, -75) and (125, -75) at 180 s and back at 360 s.
 VEHICLES = {"abe": ("x=0,y=0,heading=0", "x=0,y=-50"), "ben": ("x=80,y=0,heading=0", "x=125,y=-50"),
@@ -60,102 +56,57 @@ def _drop_block(text: str, header: str) -> str:
 
 
 @dataclass
-class Community:
-    name: str
-    port: int
-    defines: dict[str, str]
-    process: subprocess.Popen | None = None
+class LoiterMission(OilspillMission):
+    """m2_berta for four vehicles in `folder` on free loopback ports; launching, stopping and the
+    antler logs are OilspillMission's, the templates and macros are m2_berta's."""
 
-
-@dataclass
-class LoiterMission:
-    """m2_berta for four vehicles in `folder` on free loopback ports."""
-
-    folder: Path
-    warp: float = 10.0
     deprecated: bool = True
     avoid: bool = False
-    one_process: bool = True
-    communities: list[Community] = field(default_factory=list)
 
     def __post_init__(self):
         self.folder = Path(self.folder).resolve()
         shore_pshare = free_port(socket.SOCK_DGRAM)
         common = {"WARP": f"{self.warp:g}", "IP_ADDR": "localhost"}
-        shore = Community("shoreside", free_port(), {**common, "PSHARE_PORT": str(shore_pshare),
-                                                     "VNAMES": ":".join(VEHICLES)})
-        shore.defines["MOOS_PORT"] = str(shore.port)
-        self.communities = [shore]
+        self.shoreside = Community("shoreside", free_port(), {**common, "PSHARE_PORT": str(shore_pshare),
+                                                              "VNAMES": ":".join(VEHICLES)})
+        self.shoreside.defines["MOOS_PORT"] = str(self.shoreside.moos_port)
+        self.fleet = {}
         for name, (start, loiter) in VEHICLES.items():
             port = free_port()
-            self.communities.append(Community(name, port, {
+            self.fleet[name] = Community(name, port, {
                 **common, "VNAME": name, "MOOS_PORT": str(port), "PSHARE_PORT": str(free_port(socket.SOCK_DGRAM)),
                 "SHORE_IP": "localhost", "SHORE_PSHARE": str(shore_pshare), "XMODE": "SIM", "START_POS": start,
-                "LOITER_POS": loiter, "MAX_SPD": "2"}))
+                "LOITER_POS": loiter, "MAX_SPD": "2"})
 
-    @property
-    def shoreside(self) -> Community:
-        return self.communities[0]
-
-    @property
-    def vehicles(self) -> list[Community]:
-        return self.communities[1:]
-
-    def generate(self) -> None:
-        self.folder.mkdir(parents=True, exist_ok=True)
+    def generate(self) -> list[Path]:
+        (self.folder / "logs").mkdir(parents=True, exist_ok=True)
         text = _expand(M2_BERTA / "meta_shoreside.moos", self.shoreside.defines, self.folder / "targ_shoreside.moos")
         # the shoreside's port (fixed at 9000 in the corpus file) and the viewer's web page on free
         # ports: two runs at once must not both want 9000 and 8080
-        text = re.sub(r"(?m)^ServerPort\s*=.*$", f"ServerPort = {self.shoreside.port}", text, count=1)
+        text = re.sub(r"(?m)^ServerPort\s*=.*$", f"ServerPort = {self.shoreside.moos_port}", text, count=1)
         text = re.sub(r"(ProcessConfig = pMarineViewer\s*\{)", rf"\1\n  http_port = {free_port()}", text, count=1)
         (self.folder / "targ_shoreside.moos").write_text(text)
-        for v in self.vehicles:
-            moos = _expand(M2_BERTA / "meta_vehicle.moos", v.defines, self.folder / f"targ_{v.name}.moos")
+        for v in self.fleet.values():
+            moos = _expand(M2_BERTA / "meta_vehicle.moos", v.defines, self.folder / v.moos_file)
             if self.deprecated:
                 moos = re.sub(r"\b(uSimMarine|pMarinePID)V22\b", r"\1", moos)
-            (self.folder / f"targ_{v.name}.moos").write_text(moos)
+            (self.folder / v.moos_file).write_text(moos)
             bhv = _drop_block(_expand(M2_BERTA / "meta_vehicle.bhv", v.defines, self.folder / f"targ_{v.name}.bhv"),
                               "Behavior = BHV_AvdColregsV22")
             if self.avoid:
                 bhv = bhv.replace("//Behavior = BHV_AvoidCollision", "Behavior = BHV_AvoidCollision")
             (self.folder / f"targ_{v.name}.bhv").write_text(bhv)
-
-    def start(self) -> None:
-        self.generate()
-        for c in self.communities:
-            log = open(self.folder / f"antler_{c.name}.txt", "ab")
-            args = [str(BIN / "pAntler"), f"targ_{c.name}.moos"] + (["--one-process"] if self.one_process else [])
-            c.process = subprocess.Popen(args, cwd=self.folder, stdout=log, stderr=subprocess.STDOUT,
-                                         start_new_session=True)
-            log.close()
-
-    def stop(self, timeout: float = 15.0) -> None:
-        running = [c.process for c in self.communities if c.process is not None and c.process.poll() is None]
-        for process in running:
-            os.killpg(process.pid, signal.SIGTERM)
-        deadline = time.monotonic() + timeout
-        for process in running:
-            try:
-                process.wait(timeout=max(deadline - time.monotonic(), 0.1))
-            except subprocess.TimeoutExpired:
-                os.killpg(process.pid, signal.SIGKILL)
-                process.wait()
+        return [self.folder / c.moos_file for c in self.communities]
 
     def antler_log(self, name: str) -> str:
-        return (self.folder / f"antler_{name}.txt").read_text(errors="replace")
+        return (self.folder / "logs" / f"antler_{name}.txt").read_text(errors="replace")
 
     def alog(self, name: str) -> Path:
-        found = sorted(self.folder.glob(f"LOG_{name.upper()}*/*.alog")) or sorted(self.folder.glob(f"LOG_{name.upper()}*.alog"))
+        """pLogger's `File = LOG_%(VNAME)`, `PATH = ./`, time-stamped: a folder in the mission's."""
+        found = sorted(self.folder.glob(f"LOG_{name.upper()}_*/*.alog"))
         if not found:
             raise FileNotFoundError(f"no alog for {name} in {self.folder}")
         return found[-1]
-
-    def __enter__(self):
-        self.start()
-        return self
-
-    def __exit__(self, *exc):
-        self.stop()
 
 
 def clients(value) -> set[str]:
@@ -165,11 +116,11 @@ def clients(value) -> set[str]:
 async def fly(mission: LoiterMission, seconds: float, timeout: float = 120.0) -> dict:
     """Wait for every vehicle's NODE_REPORT on the shoreside, deploy, fly `seconds` of MOOS time.
     Returns each community's DB_CLIENTS (as last seen) and the deploy's MOOS time."""
-    watchers = {c.name: MOOSClient("uLoiterWatch", port=c.port, time_warp=mission.warp) for c in mission.communities}
+    watchers = {c.name: MOOSClient("uLoiterWatch", port=c.moos_port, time_warp=mission.warp) for c in mission.communities}
     for watcher in watchers.values():
         watcher.register("DB_CLIENTS")
     shore = watchers["shoreside"]
-    for v in mission.vehicles:
+    for v in mission.fleet.values():
         shore.register(f"NODE_REPORT_{v.name.upper()}")
     tasks = [asyncio.create_task(w.run()) for w in watchers.values()]
 
@@ -180,13 +131,13 @@ async def fly(mission: LoiterMission, seconds: float, timeout: float = 120.0) ->
     async def until(predicate, what):
         deadline = time.monotonic() + timeout
         while not predicate():
-            dead = [c.name for c in mission.communities if c.process and c.process.poll() is not None]
+            dead = mission.dead()
             if dead or time.monotonic() > deadline:
                 raise TimeoutError(f"{what}: {'pAntler ended: ' + ', '.join(dead) if dead else 'timed out'}")
             await asyncio.sleep(0.1)
 
     try:
-        await until(lambda: all(latest("shoreside", f"NODE_REPORT_{v.name.upper()}") for v in mission.vehicles),
+        await until(lambda: all(latest("shoreside", f"NODE_REPORT_{v.name.upper()}") for v in mission.fleet.values()),
                     "every vehicle reporting to the shoreside")
         for key, value in DEPLOY:
             shore.notify(key, value)
@@ -202,7 +153,7 @@ async def fly(mission: LoiterMission, seconds: float, timeout: float = 120.0) ->
 def distances(mission: LoiterMission, seconds: float) -> dict[str, float]:
     """Metres each vehicle's NAV_X/NAV_Y moved in the first `seconds` after its helm saw DEPLOY=true."""
     out = {}
-    for v in mission.vehicles:
+    for v in mission.fleet.values():
         alog = read_alog(mission.alog(v.name))
         deploy = next(e.time for e in alog.entries if e.key == "DEPLOY" and str(e.value).lower() == "true")
         xs = {e.time: e.value for e in alog.entries if e.key == "NAV_X"}
@@ -216,7 +167,7 @@ def closest_approach(mission: LoiterMission, seconds: float) -> float:
     """The least distance between any two vehicles while flying (their NAV_X/NAV_Y on the MOOS clock,
     interpolated every 0.5 s over the span all of them logged)."""
     tracks = []
-    for v in mission.vehicles:
+    for v in mission.fleet.values():
         alog = read_alog(mission.alog(v.name))
         deploy = alog.log_start + next(e.time for e in alog.entries if e.key == "DEPLOY" and str(e.value).lower() == "true")
         xs = {alog.log_start + e.time: e.value for e in alog.entries if e.key == "NAV_X"}

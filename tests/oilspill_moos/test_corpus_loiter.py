@@ -31,7 +31,7 @@ def test_the_loiter_mission_launches_every_app_and_the_vessels_move(tmp_path):
         assert runs - NOT_OURS <= flown["clients"][c.name], (c.name, sorted(runs - NOT_OURS - flown["clients"][c.name]))
     assert {"uFldNodeComms", "pRealm"} <= flown["clients"]["shoreside"]
     spawned = 0
-    for v in mission.vehicles:
+    for v in mission.fleet.values():
         assert {"pContactMgrV20", "pRealm", "uSimMarine", "pMarinePID"} <= flown["clients"][v.name]
         alog = read_alog(mission.alog(v.name))
         assert any(str(r).startswith("id=ac_,") for r in alog.values("BCM_ALERT_REQUEST")), v.name
