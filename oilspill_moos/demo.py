@@ -35,7 +35,7 @@ from oilspill_moos.viewer.app import viewer_beside
 
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
 RESPONSE_VEHICLES = 8
-RESPONSE_WARP = 12.0    # what this shared 2-core machine keeps up with for 8 vessels (docs/demo.md)
+RESPONSE_WARP = 30.0    # what this shared 2-core machine keeps up with for 8 vessels (docs/demo.md)
 
 
 def shipped_boundaries() -> list[bytes]:
