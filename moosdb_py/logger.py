@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import math
 import shutil
+import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -21,6 +22,7 @@ from .mission import ConfigEntry, ProcessConfig
 
 ALWAYS_OMITTED = ("MISSION_FILE",)
 CMD_VAR = "PLOGGER_CMD"
+FLUSH_PERIOD = 0.25   # wall seconds between flushes of the logs: lines reach the files within it
 LOGGER_PARAMS = Params(
     Param("File", str, "MOOSLog", "stem of the log folder and file names"),
     Param("PATH", str, "./", "folder the log folder is made in"),
@@ -194,7 +196,7 @@ class Logger(MOOSApp):
     example_config = """\
 ProcessConfig = pLogger
 {
-  AppTick   = 5          // how often the files are flushed and the .slog row written
+  AppTick   = 5          // how often the .slog row is written (files flushed every 0.25 s at most)
   CommsTick = 5
 
   File          = MOOSLog   // stem of the log folder and file names (default MOOSLog)
@@ -251,6 +253,7 @@ PUBLICATIONS:
         self.slog = SyncLog(self.directory / f"{self.root}.slog", shown + ".slog", self.log_start, sync_vars,
                             settings.double_precision) if settings.sync_log else None
         self._next_sync = self.log_start
+        self._next_flush = 0.0
         if self.mission is not None:
             shutil.copyfile(self.mission.path, self.directory / f"{self.root}._moos")
 
@@ -300,11 +303,14 @@ PUBLICATIONS:
         if self.slog is not None and now >= self._next_sync:
             self.slog.write_row(now - self.log_start)
             self._next_sync = now + self.settings.sync_period
-        for writer in (self.alog, self.xlog):
-            if writer is not None:
-                writer.flush()
-        if self.slog is not None:
-            self.slog.stream.flush()
+        mono = time.monotonic()
+        if mono >= self._next_flush:    # at warp 10 an AppTick of 8 would flush 80 times a second
+            self._next_flush = mono + FLUSH_PERIOD
+            for writer in (self.alog, self.xlog):
+                if writer is not None:
+                    writer.flush()
+            if self.slog is not None:
+                self.slog.stream.flush()
 
     async def run_async(self) -> None:
         try:
