@@ -95,6 +95,14 @@ def _accepting(host: str, port: int) -> bool:
         return False
 
 
+def one_app_mission(path: Path, port: int, community: str, app: str, block: str, warp: float = 10) -> Path:
+    """A .moos file for one app against a test DB: its address, community, time warp and `app`'s block
+    (`block` is the lines inside the braces)."""
+    path.write_text(f"ServerHost = localhost\nServerPort = {port}\nCommunity = {community}\nMOOSTimeWarp = {warp:g}\n\n"
+                    f"ProcessConfig = {app}\n{{\n{block}}}\n")
+    return path
+
+
 def start_moosdb(*args: str, port: int | None = None) -> DBProcess:
     """Start `python -m moosdb_py.moosdb` and wait until it accepts connections."""
     port = port or free_port()

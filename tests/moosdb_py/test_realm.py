@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from helpers import async_wait_until, start_moosdb
+from helpers import async_wait_until, one_app_mission, start_moosdb
 from hypothesis import given, strategies as st
 
 from moosdb_py.client import MOOSClient
@@ -149,9 +149,8 @@ def test_bad_scope_set_names_its_line(tmp_path):
 
 def test_realm_against_a_moosdb(tmp_path):
     db = start_moosdb("--moos_community", "abe")
-    path = tmp_path / "abe.moos"
-    path.write_text(f"ServerHost = localhost\nServerPort = {db.port}\nCommunity = abe\nMOOSTimeWarp = {WARP}\n\n"
-                    "ProcessConfig = pRealm\n{\n  AppTick = 4\n  scope_set = name=events, vars=DEPLOY:RETURN\n}\n")
+    path = one_app_mission(tmp_path / "abe.moos", db.port, "abe", "pRealm",
+                           "  AppTick = 4\n  scope_set = name=events, vars=DEPLOY:RETURN\n", WARP)
     realm = Realm(path)
     viewer = MOOSClient("pMarineViewer", port=db.port, time_warp=WARP)
     for key in ("REALMCAST", "REALMCAST_CHANNELS", "WATCHCAST", "VIEWER_FOO"):

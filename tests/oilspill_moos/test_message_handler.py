@@ -7,7 +7,7 @@ import asyncio
 import pytest
 from hypothesis import given, strategies as st
 
-from helpers import async_wait_until, start_moosdb
+from helpers import async_wait_until, one_app_mission, start_moosdb
 
 from moosdb_py.client import MOOSClient
 from oilspill_moos.field.message_handler import Delivery, MessageHandler, MessageInbox
@@ -53,9 +53,7 @@ def test_strict_addressing_and_the_summary():
 
 def test_the_app_posts_the_message_variable(tmp_path):
     db = start_moosdb("--moos_community", "ben")
-    mission = tmp_path / "ben.moos"
-    mission.write_text(f"ServerHost = localhost\nServerPort = {db.port}\nCommunity = ben\nMOOSTimeWarp = 10\n\n"
-                       "ProcessConfig = uFldMessageHandler\n{\n  AppTick = 10\n}\n")
+    mission = one_app_mission(tmp_path / "ben.moos", db.port, "ben", "uFldMessageHandler", "  AppTick = 10\n")
     app = MessageHandler(mission)
     mail = []
     client = MOOSClient("watch", "127.0.0.1", db.port, on_mail=mail.extend, time_warp=10,

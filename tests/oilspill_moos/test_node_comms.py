@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import async_wait_until, start_moosdb
+from helpers import async_wait_until, one_app_mission, start_moosdb
 
 from moosdb_py.client import MOOSClient
 from moosdb_py.source import MissionFileError
@@ -164,10 +164,9 @@ def test_configuration_errors_name_the_line(tmp_path):
 def test_relay_as_a_process_between_two_vehicles(tmp_path):
     """A real uFldNodeComms process on a real moosdb: reports within range come back as NODE_REPORT_<V>."""
     db = start_moosdb("--moos_community", "shoreside")
-    mission = tmp_path / "shoreside.moos"
-    mission.write_text(f"ServerHost = localhost\nServerPort = {db.port}\nCommunity = shoreside\nMOOSTimeWarp = 10\n\n"
-                       "ProcessConfig = uFldNodeComms\n{\n  AppTick = 10\n  comms_range = 100\n"
-                       "  critical_range = 5\n  stale_time = 50\n  min_msg_interval = 0\n}\n")
+    mission = one_app_mission(tmp_path / "shoreside.moos", db.port, "shoreside", "uFldNodeComms",
+                              "  AppTick = 10\n  comms_range = 100\n  critical_range = 5\n  stale_time = 50\n"
+                              "  min_msg_interval = 0\n")
     app = subprocess.Popen([str(Path(sys.executable).parent / "uFldNodeComms"), str(mission)],
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     mail = []
