@@ -95,16 +95,10 @@ def score(scenarios, kinds, settings: E.Settings, correctors: dict, *, exact: bo
     releases = {s.scenario_id: s.params.get("release", "?") for s in scenarios}
     out = Scores(list(kinds), tuple(horizons_h), np.array([c.scenario_id for c in cases]),
                  np.array([releases[c.scenario_id] for c in cases]))
-    features = [F.window_features(c.obs.shapes, c.obs.times_s, c.obs.environments, c.obs.drift_between(settings.params))
-                for c in cases] if any(k in correctors for k in kinds) else []
     for kind in tqdm(kinds, desc="kinds", disable=not progress, leave=False):
-        corrections = [None] * len(cases)
         started = time.process_time()
-        if kind in correctors:
-            x = np.array([f[0] for f in features])
-            dt = np.array([f[1] for f in features])
-            mean, sigma = correctors[kind].predict(x, dt)
-            corrections = [E.correction_from(m, s, f[2]) for m, s, f in zip(mean, sigma, features)]
+        corrections = (correctors[kind].corrections([c.obs for c in cases], settings.params) if kind in correctors
+                       else [None] * len(cases))
         ious, errors, norm = [], [], []
         for case, correction in zip(cases, corrections):
             forecasts = E.forecast_plane(kind, case.obs, horizons_h, settings, correction, contours=False)
