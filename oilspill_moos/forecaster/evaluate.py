@@ -28,6 +28,7 @@ COVERAGE_LEVELS = (0.5, 0.8, 0.9, 0.95)
 
 
 def iou(a, b) -> float:
+    a, b = (g if g.is_valid else shapely.make_valid(g) for g in (a, b))
     union = shapely.union(a, b).area
     return float(shapely.intersection(a, b).area / union) if union > 0 else 0.0
 
