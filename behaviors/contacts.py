@@ -93,9 +93,11 @@ class NodeRecord:
         return extrapolate(self.x, self.y, self.speed, self.heading, elapsed, decay_start, decay_end)
 
 
-def node_report_values(report: str) -> dict[str, float | str] | None:
+def node_report_values(report: str, grid=None) -> dict[str, float | str] | None:
     """The info-buffer values of one NODE_REPORT, or None when it lacks a name, position, speed,
-    heading or time (such a report tells a contact behaviour nothing it can use)."""
+    heading or time (such a report tells a contact behaviour nothing it can use). A report with
+    only LAT/LON (pNodeReporter's `coord_policy_global = true`, as in m2_berta) is placed with `grid`,
+    the mission's LocalGrid, as the C++ helm places it about LatOrigin/LongOrigin."""
     try:
         fields = parse_pairs(report)
     except FormatError:
@@ -106,6 +108,10 @@ def node_report_values(report: str) -> dict[str, float | str] | None:
         number = as_number(fields.get(key, ""))
         if number is not None:
             values[suffix] = number
+    if grid is not None and ("NAV_X" not in values or "NAV_Y" not in values):
+        lat, lon = as_number(fields.get("lat", "")), as_number(fields.get("lon", fields.get("long", "")))
+        if lat is not None and lon is not None:
+            values["NAV_X"], values["NAV_Y"] = grid.to_local(lat, lon)
     stamps = [as_number(fields[k]) for k in TIME_FIELDS if k in fields]
     stamp = next((s for s in stamps if s is not None), None)
     if stamp is not None:

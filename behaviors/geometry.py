@@ -10,7 +10,7 @@ float arrays of local x/y metres (x east, y north); angles are compass degrees (
 Seglist patterns (waypoints): `format=lawnmower` / `lawnmower:`, `format=bowtie`, `zigzag:`.
 Polygon patterns: `format=radial` / `radial::` / short `radial:`, `format=ellipse` / `ellipse:`,
 `format=wedge` / `piewedge` / `wedge:`, `format=rangewedge` / `rangewedge:`, `format=pylon` /
-`pylon:`. A polygon parameter also takes any point list.
+`pylon:`, `format=oval` / `oval:`. A polygon parameter also takes any point list.
 """
 from __future__ import annotations
 
@@ -239,11 +239,29 @@ def _pylon(props: dict[str, str]) -> np.ndarray:
     return snapped(np.array(pts, dtype=float), _number(props.get("snap", "0"), "snap"))
 
 
+OVAL_ARC_STEP = 15.0   # degrees between an oval's arc vertices (MOOS-IvP draws the polygon at 15 whatever draw_degs says)
+
+
+def _oval(props: dict[str, str]) -> np.ndarray:
+    """A stadium `len` long and 2·`rad` wide about (x, y) (default 0,0), its long axis on compass `ang`
+    (default 0): the half circle about the end centre `ang` side, then the one about the other end,
+    each from 90 degrees left of its outward axis clockwise to 90 right in 15-degree steps (26
+    vertices). `draw_degs` is accepted and, as in MOOS-IvP, does not change the polygon."""
+    rad, length = _required(props, ("rad", "len"), "oval")
+    if rad <= 0 or length <= 2 * rad:
+        raise GeometryError("oval needs rad > 0 and len > 2 * rad")
+    x, y, ang = (_number(props.get(k, "0"), k) for k in ("x", "y", "ang"))
+    half = (length - 2 * rad) / 2
+    steps = np.arange(-90.0, 90.0 + OVAL_ARC_STEP / 2, OVAL_ARC_STEP)
+    arcs = [np.column_stack(project(*project(x, y, axis, half), axis + steps, rad)) for axis in (ang, ang + 180)]
+    return np.vstack(arcs)
+
+
 POLYGON_PATTERNS: dict[str, Callable[[dict[str, str]], np.ndarray]] = {
     "radial": _radial, "ellipse": _ellipse, "wedge": _wedge, "piewedge": _wedge, "rangewedge": _range_wedge,
-    "pylon": _pylon}
+    "pylon": _pylon, "oval": _oval}
 POLYGON_PREFIXES = (("radial::", "radial"), ("ellipse::", "ellipse"), ("ellipse:", "ellipse"), ("wedge:", "wedge"),
-                    ("piewedge:", "piewedge"), ("rangewedge:", "rangewedge"), ("pylon:", "pylon"))
+                    ("piewedge:", "piewedge"), ("rangewedge:", "rangewedge"), ("pylon:", "pylon"), ("oval:", "oval"))
 
 
 def _short_radial(text: str) -> np.ndarray:

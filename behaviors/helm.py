@@ -61,6 +61,7 @@ class Helm:
         self.domain, self.ownship, self.app_name = domain, ownship, app_name
         self.allow_park, self.park_on_allstop, self.helm_prefix = allow_park, park_on_allstop, helm_prefix
         self.info = InfoBuffer()
+        self.grid = None   # the mission's LocalGrid: places NODE_REPORTs that give only LAT/LON
         self.modes = [m for f in bhv_files for m in f.modes]
         self.initializes = [i for f in bhv_files for i in f.initializes]
         self.behaviors: list[IvPBehavior] = []
@@ -151,7 +152,7 @@ class Helm:
                 elif text == "true" and self.allow_park:
                     self.status = "PARK"
         if var == "NODE_REPORT":
-            for name, field in (node_report_values(str(value)) or {}).items():
+            for name, field in (node_report_values(str(value), self.grid) or {}).items():
                 self.info.set(name, field, time)
         if var == "HELM_MAP_CLEAR" and time - self.last_map_clear >= 2.0:
             self.last_map_clear = time

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import FormatError, parse_pairs
+from moosdb_py.geodesy import mission_grid
 from moosdb_py.source import MissionFileError
 
 from .bhv_file import BhvFile, read_bhv
@@ -148,6 +149,8 @@ PUBLICATIONS
             print(f"{self.name}: warning: {warning}", file=sys.stderr)
         if self.mission is not None and (self.mission.lat_origin is None or self.mission.long_origin is None):
             self.helm.malconfig(f"{self.mission.path}: LatOrigin/LongOrigin not set")
+        else:
+            self.helm.grid = mission_grid(self.mission)
         for warning in self.helm.config_warnings:
             print(f"{self.name}: {warning} -> MALCONFIG, the helm will not drive", file=sys.stderr)
         self.warned = len(self.helm.run_warnings)

@@ -39,7 +39,7 @@ from oilspill_moos.oilspill_mission import (
     wait_for,
 )
 from oilspill_moos.forecaster.push import BoundaryPusher
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import parse_boundary_line
 from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION
 from oilspill_moos.response.planner import containment_region, plan_arcs, plan_containment

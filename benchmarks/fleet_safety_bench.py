@@ -11,6 +11,7 @@ warp (NAV_X posts per mission second against uSimMarineV22's 5).
 
 Run: nice -n 10 .venv/bin/python benchmarks/fleet_safety_bench.py [--warp 4] [--seeds 5] [--drops 0,20]
      [--no-avoid]   (the same without collision avoidance, for comparison)
+     [--patrol arcs|loop]   (pPathAssign's patrol mode; arcs, the mission's default, unless given)
 """
 from __future__ import annotations
 
@@ -97,11 +98,12 @@ def judge(mission: OilspillMission) -> dict:
             "keep_up": min(rates, default=0.0) / SIM_NAV_RATE}
 
 
-def run(seed: int, drop: float, warp: float, avoid: bool, timeout: float, folder: Path) -> dict:
+def run(seed: int, drop: float, warp: float, avoid: bool, timeout: float, folder: Path, patrol: str) -> dict:
     rng = np.random.default_rng(seed)
     starts = cluster(rng)
     boundary = spill(rng)
-    extra = {"COMMS_DROP": f"{drop:g}", "COMMS_SEED": str(seed), "AVOID": "true" if avoid else "false"}
+    extra = {"COMMS_DROP": f"{drop:g}", "COMMS_SEED": str(seed), "AVOID": "true" if avoid else "false",
+             "PATROL": patrol}
     mission = OilspillMission(folder, vehicles=VESSELS, warp=warp, starts=starts, standoff=STANDOFF,
                               node_timeout=60.0, extra=extra)
     began = time.monotonic()
@@ -119,19 +121,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--drops", default="0,20", help="uFldNodeComms drop percentages (default 0,20)")
     parser.add_argument("--no-avoid", action="store_true", help="fly without collision avoidance")
     parser.add_argument("--timeout", type=float, default=300.0, help="wall seconds per step (default 300)")
+    parser.add_argument("--patrol", choices=("arcs", "loop"), default="arcs", help="pPathAssign patrol mode (default arcs)")
     parser.add_argument("--keep", type=Path, default=None, help="keep the runs' folders here")
     args = parser.parse_args(argv)
     drops = [float(d) for d in args.drops.split(",")]
     avoid = not args.no_avoid
     print(f"{VESSELS} vessels clustered {SPACING:g} m apart, spill {SPILL_DISTANCE:g} m away, "
-          f"time warp {args.warp:g}, avoidance {'on' if avoid else 'off'}")
+          f"time warp {args.warp:g}, patrol {args.patrol}, avoidance {'on' if avoid else 'off'}")
     print(f"{'drop %':>6} {'seed':>4} {'collisions':>10} {'near miss':>9} {'encounters':>10} {'min sep m':>9} "
           f"{'crossings':>9} {'transit s':>9} {'keep-up':>7} {'wall s':>6}")
     base = args.keep or Path(tempfile.mkdtemp(prefix="fleet_safety_"))
     for drop in drops:
         rows = []
         for seed in range(1, args.seeds + 1):
-            r = run(seed, drop, args.warp, avoid, args.timeout, base / f"drop{drop:g}_seed{seed}")
+            r = run(seed, drop, args.warp, avoid, args.timeout, base / f"drop{drop:g}_seed{seed}", args.patrol)
             rows.append(r)
             print(f"{drop:>6g} {seed:>4} {r['collisions']:>10} {r['near_misses']:>9} {r['encounters']:>10} "
                   f"{r['min_sep']:>9.1f} {r['crossings']:>9} {r['transit_s']:>9.0f} {r['keep_up']:>7.2f} "

@@ -32,7 +32,7 @@ from oilspill_moos.forecaster.assimilate import ingest, read_feedback
 from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.features import to_plane
 from oilspill_moos.forecaster.push import BoundaryPusher
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.response.scenario_map import ScenarioMap
 from oilspill_moos.messages import format_points, parse_report
 from oilspill_moos.response.path_assign import OIL_PATH

@@ -6,7 +6,7 @@ key=value lists, seglists), so two apps never keep their own idea of a message:
 | Message | Written by | Read by |
 |---|---|---|
 | boundary line (TCP, JSON or `pts={}`) | the forecaster (`boundary_line`) | pPathAssign (`parse_boundary_line`) |
-| `OILSPILL_FORECAST` | pPathAssign (`format_forecast`) | pMarineViewer |
+| `OILSPILL_FORECAST` | pPathAssign (`format_forecast`) | pMarineViewer (`parse_forecast`) |
 | `STARTING_POSITION_UPDATES_<V>`, `OIL_PATH_UPDATES_<V>` | pPathAssign (`points_update`) | the helm's BHV_Waypoint (`parse_points_update`) |
 | `VEHICLE_COORDINATES` | pCoordinates (`coordinates_report`) | pPathAssign (`parse_report`) |
 | `NODE_REPORT` | pNodeReporter | pPathAssign (`parse_report`) |
@@ -28,6 +28,7 @@ import shapely
 from shapely.geometry import Point, Polygon
 
 from moosdb_py import formats
+from moosdb_py.config import parse_float
 from moosdb_py.formats import FormatError, format_number, parse_pairs
 
 # ---- the boundary line: forecaster -> pPathAssign over TCP ---------------------------------------
@@ -171,6 +172,30 @@ def format_forecast(boundary: Boundary, cycle: int) -> str:
                f"source={_UNSAFE.sub('_', boundary.source) or 'unknown'}",
                f"pts={{{format_points(boundary.polygon)}}}"]
     return ",".join(fields)
+
+
+def parse_forecast(text: str) -> tuple[Boundary, int]:
+    """OILSPILL_FORECAST -> (the horizon's Boundary, its cycle); BoundaryError saying what is wrong."""
+    if "pts={" not in "".join(text.split()).lower():
+        raise BoundaryError("needs cycle=, horizon= and pts={..}")
+    try:
+        fields = parse_pairs("".join(text.split()))
+    except FormatError as err:
+        raise BoundaryError(str(err)) from None
+    if "cycle" not in fields or "horizon" not in fields:
+        raise BoundaryError("needs cycle=, horizon= and pts={..}")
+    try:
+        cycle = parse_float(fields["cycle"], "cycle", lo=0)
+        horizon = parse_float(fields["horizon"], "horizon")
+        uncertainty = parse_float(fields.get("uncertainty", "0"), "uncertainty", lo=0)
+        valid = parse_float(fields["valid"], "valid") if "valid" in fields else None
+    except ValueError as err:
+        raise BoundaryError(str(err)) from None
+    vertices = parse_polygon_spec(text)
+    if len(vertices) < 3 or not cycle.is_integer():
+        raise BoundaryError("needs a whole cycle number and 3 points at least")
+    return Boundary(tuple(map(tuple, vertices)), time=valid, horizon_h=horizon, uncertainty_m=uncertainty,
+                    source=fields.get("source", "")), int(cycle)
 
 
 def polygon_string(polygon: Polygon | Iterable[Iterable[float]], label: str, **extra: str) -> str:

@@ -16,7 +16,7 @@ from behaviors.flags import FlagError, FlagSpec, parse_flag
 from behaviors.logic import Condition, ConditionError, condition_variables, parse_condition
 from moosdb_py.formats import format_number
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from behaviors.contacts import NodeRecord, NodeRecordError
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from moosdb_py.formats import parse_pairs
 from moosdb_py.config import ConfigValueError, Param, Params, config_float, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from behaviors.contacts import NodeRecord, NodeRecordError
 from oilspill_moos.node_message import NodeMessage

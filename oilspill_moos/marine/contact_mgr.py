@@ -21,7 +21,7 @@ from behaviors.flags import FlagError, FlagSpec, expand_macros, parse_flag
 from behaviors.geometry import GeometryError, parse_polygon
 from moosdb_py.formats import FormatError, format_number, is_number, parse_bool, parse_pairs, split_quoted
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 from oilspill_moos.machine_app import MachineApp
 from behaviors.contacts import NodeRecord, NodeRecordError, cpa_range, relative_bearing
 

@@ -13,8 +13,8 @@ import numpy as np
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_float, read_params
-from moosdb_py.formats import FormatError, format_number, parse_bool
-from oilspill_moos.geodesy import LocalGrid, mission_grid
+from moosdb_py.formats import FormatError, format_number, parse_bool, split_quoted
+from moosdb_py.geodesy import LocalGrid, mission_grid
 
 CROSSFILL_POLICIES = ("literal", "fill-empty", "use-latest", "global")
 
@@ -87,10 +87,15 @@ class ReporterParams:
 
 
 def summary_modes(summary: str) -> str | None:
-    """The `modes=` field of an IVPHELM_SUMMARY, if it has one."""
-    for part in summary.split(","):
-        key, sep, value = part.partition("=")
-        if sep and key.strip().lower() == "modes":
+    """The `modes=` field of an IVPHELM_SUMMARY, if it has one; fields split as every MOOS string is
+    (split_quoted). The summary's other fields are not all key=value, so no parse_pairs."""
+    try:
+        fields = split_quoted(summary)
+    except FormatError:
+        return None
+    for field in fields:
+        key, sep, value = field.partition("=")
+        if sep and key.lower() == "modes":
             return value.strip()
     return None
 

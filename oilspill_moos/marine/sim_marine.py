@@ -14,9 +14,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from moosdb_py.app import MOOSApp
-from moosdb_py.formats import format_number, parse_pairs
+from moosdb_py.formats import format_number
 from moosdb_py.config import ConfigLike, ConfigValueError, Param, Params, parse_bool, parse_float, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 
 log = logging.getLogger("oilspill_moos.marine.sim_marine")
 
@@ -35,20 +35,20 @@ class NavState:
 
     @classmethod
     def parse(cls, text: str, what: str = "start_pos") -> "NavState":
-        """`x=0, y=-20, heading=180, speed=0[, depth=0]` or positional `x,y,heading,speed[,depth]`."""
+        """`x=0, y=-20, heading=180, speed=0[, depth=0]`, positional `x,y,heading,speed[,depth]`, or a mix:
+        a bare number is the field of its position, as MOOS-IvP reads `start_pos = x=0,y=0,heading=0, 0`
+        (m2_berta's `$(START_POS), 0`: speed 0)."""
         parts = [p.strip() for p in str(text).split(",") if p.strip()]
         names = ("x", "y", "heading", "speed", "depth")
-        values: dict[str, float] = {}
-        if parts and all("=" in p for p in parts):
-            for key, value in parse_pairs(text).items():
-                if key not in names:
-                    raise ConfigValueError(what, f"unknown field {key!r} (expected {', '.join(names)})")
-                values[key] = parse_float(value, f"{what} {key}")
-        elif parts and not any("=" in p for p in parts) and len(parts) <= len(names):
-            for key, value in zip(names, parts):
-                values[key] = parse_float(value, f"{what} {key}")
-        else:
+        if not parts or len(parts) > len(names):
             raise ConfigValueError(what, f"expected 'x=.., y=.., heading=.., speed=..' or 'x,y,heading,speed', got {text!r}")
+        values: dict[str, float] = {}
+        for index, part in enumerate(parts):
+            key, eq, value = part.partition("=")
+            key, value = (key.strip().lower(), value.strip()) if eq else (names[index], part)
+            if key not in names:
+                raise ConfigValueError(what, f"unknown field {key!r} (expected {', '.join(names)})")
+            values[key] = parse_float(value, f"{what} {key}")
         state = cls(**values)
         state.heading = angle360(state.heading)
         return state

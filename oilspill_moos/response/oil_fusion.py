@@ -26,7 +26,7 @@ from shapely.geometry.base import BaseGeometry
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
 from moosdb_py.formats import format_number
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 from oilspill_moos.messages import (
     BoundaryError,
     Observation,

@@ -20,7 +20,7 @@ from shapely.geometry.base import BaseGeometry
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import parse_pairs
 from moosdb_py.config import ConfigValueError, Param, Params, read_params
-from oilspill_moos.geodesy import mission_grid
+from moosdb_py.geodesy import mission_grid
 from oilspill_moos.messages import Observation, format_observation, parse_request, polygon_string
 from oilspill_moos.response.scenario_map import ScenarioMap
 

@@ -17,7 +17,7 @@ from shapely.geometry import Polygon
 from moosdb_py.app import MOOSApp
 from moosdb_py.config import Param, Params
 from moosdb_py.formats import format_number
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import (
     Boundary,
     BoundaryError,

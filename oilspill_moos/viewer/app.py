@@ -16,7 +16,7 @@ from moosdb_py.config import config_float, config_str, read_params, warn_unhandl
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
 from oilspill_moos.forecaster.push import DEFAULT_PORT as BOUNDARY_PORT, BoundaryPusher, PushRejected, PushUnreachable
-from oilspill_moos.geodesy import LocalGrid, mission_grid
+from moosdb_py.geodesy import LocalGrid, mission_grid
 from oilspill_moos.viewer.model import (
     REPORT_KEYS,
     SUBSCRIPTIONS,

@@ -17,8 +17,8 @@ import shapely
 
 from behaviors.contacts import NodeRecord, NodeRecordError
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
-from moosdb_py.config import parse_float
 from moosdb_py.formats import parse_pairs
+from oilspill_moos import messages
 from oilspill_moos.messages import parse_observation
 
 VIEW_KINDS = {"VIEW_POLYGON": "polygon", "VIEW_SEGLIST": "seglist", "VIEW_POINT": "point"}
@@ -157,24 +157,15 @@ def uncertainty_band(points, width: float) -> tuple:
 
 
 def parse_forecast(text: str) -> Forecast:
-    """`cycle=2,horizon=7,valid=<utc>,uncertainty=120,source=ltc-rk4,pts={x,y:...}` (pPathAssign)."""
-    props = _properties(text)
-    where = f"OILSPILL_FORECAST {text[:80]!r}"
-    if "cycle" not in props or "horizon" not in props or "pts={" not in text.replace(" ", "").lower():
-        raise ViewError(f"{where}: needs cycle=, horizon= and pts={{..}}")
+    """`cycle=2,horizon=7,valid=<utc>,uncertainty=120,source=ltc-rk4,pts={x,y:...}` (pPathAssign),
+    read by the mission's one codec (oilspill_moos.messages.parse_forecast)."""
     try:
-        cycle = parse_float(props["cycle"], "cycle", lo=0)
-        horizon = parse_float(props["horizon"], "horizon")
-        uncertainty = parse_float(props.get("uncertainty", "0"), "uncertainty", lo=0)
-        valid = parse_float(props["valid"], "valid") if "valid" in props else None
-        points = parse_seglist(text)
-    except (ValueError, GeometryError) as exc:
-        raise ViewError(f"{where}: {exc}") from None
-    if len(points) < 3 or not cycle.is_integer():
-        raise ViewError(f"{where}: needs a whole cycle number and 3 points at least")
-    return Forecast(cycle=int(cycle), horizon_h=horizon, points=tuple(map(tuple, points.tolist())),
-                    uncertainty_m=uncertainty, valid=valid, source=props.get("source", ""),
-                    band=uncertainty_band(points, uncertainty))
+        boundary, cycle = messages.parse_forecast(text)
+    except messages.BoundaryError as exc:
+        raise ViewError(f"OILSPILL_FORECAST {text[:80]!r}: {exc}") from None
+    return Forecast(cycle=cycle, horizon_h=boundary.horizon_h, points=boundary.polygon,
+                    uncertainty_m=boundary.uncertainty_m, valid=boundary.time, source=boundary.source,
+                    band=uncertainty_band(boundary.polygon, boundary.uncertainty_m))
 
 
 def _points_update(text: str, what: str) -> list[list[float]]:

@@ -10,6 +10,7 @@ import pytest
 from behaviors.behavior import InfoBuffer
 from behaviors.bhv_avoid_collision import BHV_AvoidCollision
 from behaviors.contacts import closing_speed, cpa_distance, extrapolate, node_report_values
+from moosdb_py.geodesy import LocalGrid
 from behaviors.helm import Helm
 from helm_sim import AVOID_MISSION as TEMPLATE
 from helm_sim import Boat, head_on, node_report as report, run
@@ -57,6 +58,18 @@ def test_node_report_becomes_named_info_values():
     assert node_report_values("name=gus,x=1,y=2,spd=0,hdg=0,utc_time=5")["GUS_NAV_UTC"] == 5
     assert node_report_values("NAME=henry,X=10,Y=-5,SPD=2,HDG=90") is None         # no time
     assert node_report_values("X=10,Y=-5,SPD=2,HDG=90,TIME=1") is None             # no name
+
+
+def test_a_lat_lon_only_report_is_placed_on_the_mission_grid():
+    """pNodeReporter's coord_policy_global = true (m2_berta) sends LAT/LON without X/Y: the helm places
+    the contact about LatOrigin/LongOrigin, or it could never avoid it."""
+    grid = LocalGrid(43.8253, -70.3304)
+    lat, lon = grid.to_latlon(120.0, -75.0)
+    report = f"NAME=deb,SPD=1.4,HDG=288,DEP=0,LAT={lat:.8f},LON={lon:.8f},TYPE=kayak,TIME=17961767081.39"
+    values = node_report_values(report, grid)
+    assert values["DEB_NAV_X"] == pytest.approx(120.0, abs=0.01) and values["DEB_NAV_Y"] == pytest.approx(-75.0, abs=0.01)
+    assert node_report_values(report) is None                                   # no grid: no position
+    assert node_report_values(report.replace("LON=", "LONG="), grid)["DEB_NAV_Y"] == values["DEB_NAV_Y"]
 
 
 def avoider(domain, **params):

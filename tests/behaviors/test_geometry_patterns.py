@@ -93,7 +93,9 @@ def test_polygon_formats(text, expected):
     ("format=ellipse, x=0, y=0, major=20, minor=10, degs=0, pts=3", "pts >= 4"),
     ("format=rangewedge, x=0, y=0, lang=0, rang=90, range_min=10, range_max=5", "range_min < range_max"),
     ("format=wedge, x=0, y=0, lang=0, rang=90", "wedge needs range"),
-    ("format=oval, x=0, y=0, rad=5, len=20", "unsupported polygon format 'oval'"),
+    ("format=hexagon, x=0, y=0, rad=5, pts=6", "unsupported polygon format 'hexagon'"),
+    ("format=oval, x=0, y=0, rad=5", "oval needs len"),
+    ("oval: rad=5, len=10", r"oval needs rad > 0 and len > 2 \* rad"),
     ("format=pylon, x1=0, y1=0, x2=0, y2=10, axis_pad=2", "pylon needs perp_pad"),
 ])
 def test_polygon_format_errors(text, message):
@@ -107,3 +109,20 @@ def test_waypoint_points_and_polygon_take_the_patterns(domain):
     assert len(wpt.points) == 10 and tuple(wpt.points[0]) == BOT_MID_L
     wpt.apply("polygon", "format=ellipse, x=0, y=0, major=20, minor=10, degs=0, pts=4")
     same(wpt.points, [[0, -5], [10, 0], [0, 5], [-10, 0]])      # ownship unknown: entered nearest 0,0
+
+
+# Hand-computed: rad 5, len 20 gives end centres 5 m either side of the centre along `ang`; each end
+# is a half circle of 13 vertices at 15-degree steps, from 90 left of the outward axis to 90 right.
+S75, C75 = 5 * math.sin(math.radians(75)), 5 * math.cos(math.radians(75))
+
+
+@pytest.mark.parametrize("text, picks", [
+    ("format=oval, x=0, y=0, rad=5, len=20", {0: (-5, 5), 1: (-S75, 5 + C75), 6: (0, 10), 12: (5, 5),
+                                               13: (5, -5), 19: (0, -10), 25: (-5, -5)}),
+    ("oval: x=10, y=20, rad=5, len=20, ang=90, draw_degs=5, label=o",
+     {0: (15, 25), 6: (20, 20), 12: (15, 15), 13: (5, 15), 19: (0, 20), 25: (5, 25)}),
+])
+def test_oval(text, picks):
+    pts = parse_polygon(text)
+    assert pts.shape == (26, 2)
+    same(pts[list(picks)], list(picks.values()))

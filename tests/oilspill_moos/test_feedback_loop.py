@@ -23,7 +23,7 @@ from oilspill_moos.forecaster.assimilate import ingest, read_feedback
 from oilspill_moos.forecaster.boundary import outline
 from oilspill_moos.forecaster.dataset import load_dataset
 from oilspill_moos.forecaster.push import push_lines
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.response.oil_fusion import ScenarioMap
 from oilspill_moos.response.path_assign import OIL_PATH, parse_report
 

@@ -9,7 +9,7 @@ from shapely.geometry import Polygon
 from behaviors.geometry import parse_seglist as helm_parse_seglist
 from moosdb_py.formats import parse_pairs, parse_seglist
 from oilspill_moos.messages import (Boundary, BoundaryError, Observation, ObservationRejected, boundary_line,
-                                    coordinates_report, format_forecast, format_observation, format_request,
+                                    coordinates_report, format_forecast, format_observation, format_request, parse_forecast,
                                     parse_boundary_line, parse_observation, parse_points_update,
                                     parse_polygon_string, parse_report, parse_request, points_update, polygon_string)
 
@@ -98,3 +98,15 @@ def test_forecast_post_reads_back(vertices, cycle, horizon, uncertainty, source)
     fields = parse_pairs(text)
     assert int(fields["cycle"]) == cycle and math.isclose(float(fields["horizon"]), horizon, abs_tol=6e-4)
     assert fields["source"] == source and close(parse_seglist(text), vertices, 0.051)
+    boundary, read_cycle = parse_forecast(text)
+    assert read_cycle == cycle and boundary.source == source and boundary.time == 1.7e9
+    assert close(boundary.polygon, vertices, 0.051)
+
+
+@pytest.mark.parametrize("text, says", [("horizon=3,pts={0,0:1,0:0,1}", "needs cycle="),
+                                         ("cycle=1.5,horizon=3,pts={0,0:1,0:0,1}", "whole cycle"),
+                                         ("cycle=1,horizon=3,valid=noon,pts={0,0:1,0:0,1}", "valid"),
+                                         ("cycle=1,horizon=3,pts={0,0:1,0}", "3 points")])
+def test_bad_forecast_posts_say_what_is_wrong(text, says):
+    with pytest.raises(BoundaryError, match=says):
+        parse_forecast(text)

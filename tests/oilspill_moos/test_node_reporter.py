@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.marine.node_reporter import (
     NodeReportBuilder,
     PlatReportInput,

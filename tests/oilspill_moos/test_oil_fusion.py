@@ -8,7 +8,7 @@ from shapely import affinity
 from shapely.geometry import Point, box
 
 from oilspill_moos.forecaster.assimilate import fit_similarity, read_feedback
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import Observation, ObservationRejected, format_observation, parse_observation
 from oilspill_moos.response.oil_fusion import ObservationCollector, flip_points, skill
 from oilspill_moos.response.scenario_map import ScenarioMap

@@ -4,7 +4,7 @@ import pytest
 from shapely.geometry import Point, box
 
 from oilspill_moos.forecaster.dataset import load_dataset
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import parse_request
 from oilspill_moos.response.oil_sensor import OilSensor, SensorModel, TruthSpill
 from oilspill_moos.response.scenario_map import ScenarioMap

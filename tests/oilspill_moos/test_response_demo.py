@@ -6,7 +6,7 @@ import shapely
 from shapely.geometry import Polygon
 
 from oilspill_moos.forecaster.train import WEIGHTS_DIR
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.oilspill_mission import ORIGIN, Observer
 from oilspill_moos.response.oil_sensor import TruthSpill
 from oilspill_moos.messages import parse_boundary_line

@@ -35,6 +35,7 @@ def test_defaults_and_start_keys():
     ("0,0, 180, 0", (0, 0, 180, 0)),
     ("x=10,y=-5,heading=90", (10, -5, 90, 0)),
     ("5, 7", (5, 7, 0, 0)),
+    ("x=0,y=0,heading=90, 1.5", (0, 0, 90, 1.5)),     # m2_berta: `$(START_POS), 0`, the bare 4th field is speed
 ])
 def test_start_pos_forms(text, expected):
     s = NavState.parse(text)

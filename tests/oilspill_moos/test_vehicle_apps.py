@@ -11,7 +11,7 @@ from helpers import CORPUS, async_wait_until, requires_shared
 from moosdb_py.client import MOOSClient
 from moosdb_py.message import MOOSMsg
 from moosdb_py.mission import read_mission
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.marine.marine_pid import MarinePID, PIDParams
 from oilspill_moos.marine.node_reporter import NodeReporter, ReporterParams
 from oilspill_moos.marine.sim_marine import SimMarine, SimParams

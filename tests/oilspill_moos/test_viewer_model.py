@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from moosdb_py.alog import alog_header, format_alog_line
 from moosdb_py.mission import read_mission
 from moosdb_py.source import MissionFileError
-from oilspill_moos.geodesy import LocalGrid
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import Boundary, format_forecast
 from oilspill_moos.viewer.app import MarineViewer, Replay, page_setup, read_settings, serve_replay
 from oilspill_moos.viewer.model import (

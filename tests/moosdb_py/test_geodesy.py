@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyproj import Geod
 
-from oilspill_moos.geodesy import LocalGrid, utm_zone
+from moosdb_py.geodesy import LocalGrid, utm_zone
 
 # The s1_alpha origin (Forest Lake, Maine).
 LAT0, LON0 = 43.825300, -70.330400
