@@ -38,7 +38,7 @@ from shapely.geometry import MultiPolygon
 from shapely.geometry.base import BaseGeometry
 
 from . import features as F
-from .kinds import BASELINE_KINDS, LEARNED_KINDS
+from .kinds import BASELINE_KINDS
 from .physics import DriftParameters, ForcingTrack, Grid, ParticleFootprint, displacement, drift, drift_velocity, probability
 
 TREND_H = 6.0                  # constant-velocity fits the observations of the last 6 h

@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from . import engine as E
 from . import features as F
-from .kinds import BASELINE_KINDS, DEFAULT_MODEL, KINDS, LEARNED_KINDS
+from .kinds import BASELINE_KINDS, DEFAULT_MODEL, LEARNED_KINDS
 
 REPO = Path(__file__).resolve().parents[2]
 COVERAGE_LEVELS = (0.5, 0.8, 0.9, 0.95)
