@@ -251,8 +251,11 @@ def footprint(method: str, x_m: np.ndarray, y_m: np.ndarray) -> MultiPolygon | N
 
 def run_scenario(params: dict, particles: int = 1000) -> Scenario:
     """Run OpenOil for one parameter set and turn each hourly output into a footprint."""
-    from opendrift.models.openoil import OpenOil
-    from opendrift.readers.reader_timeseries import Reader as TimeSeriesReader
+    import matplotlib
+
+    with matplotlib.rc_context():   # OpenDrift sets figure.autolayout for the whole process on import
+        from opendrift.models.openoil import OpenOil
+        from opendrift.readers.reader_timeseries import Reader as TimeSeriesReader
 
     release = datetime.fromisoformat(params["release_time"].replace("Z", "+00:00"))
     naive_release = release.replace(tzinfo=None)  # OpenDrift works in naive UTC
