@@ -28,7 +28,7 @@ import numpy as np
 import shapely
 
 from oilspill_moos.forecaster import features as F
-from oilspill_moos.forecaster.assimilate import RESCALE, SensorReadings, reanchor
+from oilspill_moos.forecaster.assimilate import SensorReadings, reanchored_history
 from oilspill_moos.forecaster.dataset import GULF_STEM, load_dataset, split_scenarios
 from oilspill_moos.forecaster.evaluate import bootstrap_ci, iou
 from oilspill_moos.forecaster.kinds import DEFAULT_MODEL, KINDS
@@ -78,7 +78,9 @@ def run_scenario(forecaster: Forecaster, scenario, args) -> dict[str, list[tuple
         lonlat = shapely.get_coordinates(plane.to_lonlat(shapely.MultiPoint(xy)))
         readings = SensorReadings(lonlat[:, 0], lonlat[:, 1], oil, np.full(args.samples, sensor.range_m),
                                   np.full(args.samples, release.timestamp() + 3600 * seen_h))
-        geometries = [*geometries, reanchor(on.geometry, readings, rescale=RESCALE)]
+        prior = forecaster.forecast(geometries, times, envs, horizon_forcing=ahead(hour_of(times[-1])),
+                                    horizons_h=(seen_h - hour_of(times[-1]),))[0]
+        geometries = reanchored_history(geometries, prior.geometry, readings)
         times = [*times, readings.time()]
         envs = [*envs, env(seen_h)]
     return rows

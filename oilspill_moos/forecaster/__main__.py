@@ -35,8 +35,8 @@ EXAMPLE = """\
 # Its settings are command-line flags, every one shown with its default:
 #   --host 127.0.0.1            pPathAssign's boundary server
 #   --port 9100
-#   --model {model:<19} ltc-fused | ltc-rk4 | ltc-euler | lstm | physics | persistence
-#                               | constant-velocity | constant-velocity-growth
+#   --model {model:<19} ltc-fused | ltc-rk4 | ltc-euler | lstm | physics | physics-corrected
+#                               | persistence | constant-velocity | constant-velocity-growth
 #   --weights oilspill_moos/forecaster/weights
 #   --interval 60               seconds between polls of the observations
 #   --connect-timeout 30        seconds to keep retrying pPathAssign

@@ -148,13 +148,27 @@ def ingest(forecaster, geometries: list, times: list[datetime], environments, ob
            window_h: float = WINDOW_H, release_time: datetime | None = None):
     """The observation history with the re-anchored outline appended (when ``obs`` has readings newer
     than the last polygon; the last ``window_h`` hours of them). The prior is the model's forecast for
-    the horizon nearest the readings' time, the outline the fleet was sent to."""
+    the readings' median time."""
     obs = obs.recent(times[-1], window_h)
     if len(obs) == 0 or len(geometries) < 2:
         return geometries, times, environments
     when = obs.time()
     lead_h = (when - times[-1]).total_seconds() / 3600
-    forecasts = forecaster.forecast(geometries, times, environments, release_time)
-    prior = min(forecasts, key=lambda f: abs(f.horizon_h - lead_h)).geometry
+    # the forecast for the readings' own time (any horizon): an outline valid an hour before or after
+    # them would be appended with the wrong time, and read as motion by the next forecast
+    prior = forecaster.forecast(geometries, times, environments, release_time, horizons_h=(max(lead_h, 1e-3),))[0].geometry
     environments = None if environments is None else [*environments, environments[-1]]
-    return [*geometries, reanchor(prior, obs, rescale=RESCALE)], [*times, when], environments
+    return reanchored_history(geometries, prior, obs), [*times, when], environments
+
+
+def reanchored_history(geometries: list, prior: BaseGeometry, obs: SensorReadings) -> list:
+    """The history with ``prior`` re-anchored on ``obs`` appended, and every earlier observation moved by
+    the same shift: the observed motion (which the forecaster's forcing-error estimate and features read)
+    stays what it was, and only where the spill is changes. Appending the anchor alone would turn the
+    fit's shift into a velocity, extrapolated over the next horizon."""
+    anchor = reanchor(prior, obs, rescale=RESCALE)
+    shift = np.subtract(to_plane(anchor).centroid.coords[0], to_plane(prior).centroid.coords[0])
+    if not np.any(shift):
+        return [*geometries, anchor]
+    moved = [to_lonlat(affinity.translate(to_plane(g), *shift)) for g in geometries]
+    return [*moved, anchor]

@@ -9,8 +9,15 @@ Kinds (``KINDS``):
 - ``constant-velocity-growth``: also grown at the fitted rate of area change;
 - ``physics``: the physics prior (``physics.py``): particles moved by current + windage x wind and
   spread by diffusion, with the published default parameters;
-- ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the physics prior with a learned correction of
+- ``physics-corrected``: the prior with the forcing error estimated from the observed history
+  (``forcing_error``): the observed centroids' motion against the forcing-predicted motion gives a
+  drift correction, carried on over the horizon;
+- ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
   its drift (residual displacement), its spreading (area ratio) and the spread of its error.
+
+Every kind forecasts at any horizon: the physics moves particles to any time; the learned correction,
+trained at ``features.HORIZONS_H``, is interpolated linearly in the horizon between them (from zero at
+0 h) and carried on in proportion to the horizon past the last (``Correction.at``).
 
 Uncertainty: an ensemble of ``MEMBERS`` members (``envelope`` draws the 50 % and 90 % contours). For the physics and learned kinds a member's forcing
 is the given forcing with errors of the sizes ``FORCING_ERRORS`` (speed factors, direction biases);
@@ -31,10 +38,15 @@ from shapely.geometry import MultiPolygon
 from shapely.geometry.base import BaseGeometry
 
 from . import features as F
-from .kinds import BASELINE_KINDS, LEARNED_KINDS
+from .kinds import BASELINE_KINDS
 from .physics import DriftParameters, ForcingTrack, Grid, ParticleFootprint, displacement, drift, drift_velocity, probability
 
 TREND_H = 6.0                  # constant-velocity fits the observations of the last 6 h
+# The forcing-error estimate (``forcing_error``): observations weigh exp(-age / DRIFT_MEMORY_H), and a
+# ridge of DRIFT_SHRINK_H hours of lever arm pulls a short or noisy history's estimate towards zero.
+# Both chosen on the training split's centroid errors (docs/forecaster.md).
+DRIFT_MEMORY_H = 3.0
+DRIFT_SHRINK_H = 1.0
 MEMBERS = 32
 RADIUS_95 = math.sqrt(-2 * math.log(0.05))     # 2.448: the 95 % radius of a circular 2-D Gaussian
 # 1-sigma errors of given forcing (wind/ocean model vs truth), as in the training data generation.
@@ -103,6 +115,32 @@ def _forcing_row(env) -> np.ndarray:
     return row
 
 
+def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
+    """Drift error of the given forcing (m/s, plane axes) estimated from the observed history.
+
+    The observed centroids minus the forcing-predicted track (``displacement`` from the first
+    observation) should stand still if the forcing were right; their weighted least-squares velocity
+    (weights exp(-age / DRIFT_MEMORY_H), ridge ``DRIFT_SHRINK_H``^2 h^2) is what the forcing misses.
+    One observation, or no time between them, gives zero."""
+    t = np.asarray(obs.times_s, float)
+    if len(t) < 2:
+        return np.zeros(2)
+    track = displacement(obs.track, float(t[0]), t, params.windage, params.deflection_deg)
+    residual = np.array([s.centroid for s in obs.shapes]) - track
+    w = np.exp((t - t[-1]) / (3600.0 * DRIFT_MEMORY_H))
+    tc = t - (w * t).sum() / w.sum()
+    rc = residual - (w[:, None] * residual).sum(axis=0) / w.sum()
+    return (w[:, None] * tc[:, None] * rc).sum(axis=0) / ((w * tc ** 2).sum() + (3600.0 * DRIFT_SHRINK_H) ** 2)
+
+
+def history_correction(obs: Observations, params: DriftParameters, horizons_h) -> "Correction":
+    """The prior's correction from ``forcing_error``: its drift error carried on over each horizon."""
+    horizons = tuple(horizons_h)
+    error = forcing_error(obs, params)
+    drift_m = 3600.0 * np.asarray(horizons, float)[:, None] * error[None, :]
+    return Correction(drift_m, np.zeros(len(horizons)), np.zeros((len(horizons), 2)), horizons)
+
+
 # ---------------------------------------------------------------------------------------------------
 # Baselines
 
@@ -148,22 +186,22 @@ def forcing_members(count: int = MEMBERS, seed: int = 1) -> np.ndarray:
     return out
 
 
-def _perturbed(track: ForcingTrack, member: np.ndarray) -> ForcingTrack:
-    v = track.values.copy()
-    for k, (i, j) in enumerate(((0, 1), (2, 3))):
-        scale, turn = member[2 * k], member[2 * k + 1]
-        c, s = math.cos(turn), math.sin(turn)
-        u, w = track.values[:, i], track.values[:, j]
-        v[:, i], v[:, j] = scale * (c * u - s * w), scale * (s * u + c * w)
-    return ForcingTrack(track.times_s, v)
-
-
 def forcing_offsets(obs: Observations, horizons_s: np.ndarray, params: DriftParameters,
                     members: np.ndarray) -> np.ndarray:
-    """[H, M, 2] each member's displacement minus the given forcing's, at each horizon."""
+    """[H, M, 2] each member's displacement minus the given forcing's, at each horizon. The drift is
+    linear in the forcing, so a member's displacement is its current displacement and its wind drift,
+    each scaled and turned by the member's errors (counter-clockwise by the turn)."""
     central = displacement(obs.track, 0.0, horizons_s, params.windage, params.deflection_deg)
-    return np.stack([displacement(_perturbed(obs.track, m), 0.0, horizons_s, params.windage, params.deflection_deg) - central
-                     for m in members], axis=1)
+    current = displacement(obs.track, 0.0, horizons_s, 0.0, 0.0)
+
+    def turned(d: np.ndarray, scale: np.ndarray, angle: np.ndarray) -> np.ndarray:
+        c, s = np.cos(angle)[None, :], np.sin(angle)[None, :]
+        x, y = d[:, None, 0], d[:, None, 1]
+        return scale[None, :, None] * np.stack([c * x - s * y, s * x + c * y], axis=-1)
+
+    members = np.asarray(members, float)
+    return (turned(central - current, members[:, 0], members[:, 1]) + turned(current, members[:, 2], members[:, 3])
+            - central[:, None, :])
 
 
 def gaussian_members(count: int = MEMBERS, seed: int = 2) -> np.ndarray:
@@ -198,12 +236,27 @@ class Correction:
     horizons_h: tuple = F.HORIZONS_H
 
     def at(self, horizons_h) -> "Correction":
-        """The rows for ``horizons_h`` (each must be one the model was trained for)."""
-        missing = [h for h in horizons_h if h not in self.horizons_h]
-        if missing:
-            raise ValueError(f"the learned kinds forecast only at {self.horizons_h} h, not {missing}")
-        rows = [self.horizons_h.index(h) for h in horizons_h]
-        return Correction(self.drift_m[rows], self.log_area[rows], self.sigma_m[rows], tuple(horizons_h))
+        """The correction at any ``horizons_h``: linear in the horizon between the rows it holds (and
+        from zero at 0 h), in proportion to the horizon past the last row."""
+        known = np.concatenate([[0.0], np.asarray(self.horizons_h, float)])
+        wanted = np.asarray(horizons_h, float)
+        if np.any(wanted <= 0) or not np.isfinite(wanted).all():
+            raise ValueError(f"horizons must be positive hours, not {list(horizons_h)}")
+
+        def along(values: np.ndarray) -> np.ndarray:
+            table = np.concatenate([np.zeros((1, *values.shape[1:])), values])
+            flat = table.reshape(len(known), -1)
+            inside = np.column_stack([np.interp(wanted, known, flat[:, k]) for k in range(flat.shape[1])])
+            beyond = flat[-1] * (wanted[:, None] / known[-1])
+            return np.where((wanted > known[-1])[:, None], beyond, inside).reshape(len(wanted), *values.shape[1:])
+
+        return Correction(along(self.drift_m), along(self.log_area), along(self.sigma_m), tuple(horizons_h))
+
+    def plus(self, other: "Correction") -> "Correction":
+        """Both corrections at this one's horizons: drifts and log area ratios add, spreads add in quadrature."""
+        other = other.at(self.horizons_h)
+        return Correction(self.drift_m + other.drift_m, self.log_area + other.log_area,
+                          np.hypot(self.sigma_m, other.sigma_m), self.horizons_h)
 
 
 def correction_from(mean: np.ndarray, sigma: np.ndarray, angle: float) -> Correction:
@@ -228,8 +281,15 @@ def envelope(mask: np.ndarray, grid, offsets: np.ndarray, level: float) -> Multi
 @dataclass
 class Settings:
     params: DriftParameters = field(default_factory=DriftParameters)
-    spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors
+    spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors at F.HORIZONS_H
     members: int = MEMBERS
+
+    def scale(self, kind: str, horizons_h) -> np.ndarray:
+        """Calibration factors at any horizons: linear between the calibrated ones, held beyond."""
+        factors = self.spread_scale.get(kind)
+        if factors is None:
+            return np.ones(len(horizons_h))
+        return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
 
 
 def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations, float, np.ndarray]:
@@ -255,6 +315,8 @@ def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations,
 def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
                    correction: Correction | None = None, contours: bool = True) -> list[PlanarForecast]:
     """Forecasts on ``obs.plane`` for each horizon (computed in the spill's own frame, ``canonical``)."""
+    if kind == "physics-corrected":
+        correction = history_correction(obs, settings.params, horizons_h)
     frame, angle, origin = canonical(obs, settings.params)
     if correction is not None:
         correction = correction.at(tuple(horizons_h))
@@ -272,9 +334,9 @@ def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
 def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings,
                     correction: Correction | None, contours: bool) -> list[PlanarForecast]:
     horizons_s = 3600.0 * np.asarray(horizons_h, float)
-    scale = np.asarray(settings.spread_scale.get(kind, np.ones(len(horizons_s))), float)
+    scale = settings.scale(kind, horizons_h)
     z = gaussian_members(settings.members)
-    if kind in BASELINE_KINDS and kind != "physics":
+    if kind in BASELINE_KINDS and not kind.startswith("physics"):
         geometries = [baseline_geometry(kind, obs, h) for h in horizons_s]
         masks = None
         raw = np.broadcast_to(z, (len(horizons_s), *z.shape))

@@ -149,7 +149,7 @@ class ModelConfig:
     """Everything needed to rebuild a model from a checkpoint."""
 
     kind: str = "ltc-rk4"
-    n_features: int = 23
+    n_features: int = 25
     n_targets: int = 3
     horizons_h: tuple[int, ...] = HORIZONS_H
     hidden: int = 64
@@ -231,7 +231,7 @@ class Corrector:
         model, blob = load_checkpoint(path)
         return cls(model, blob["extra"])
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def predict(self, x: np.ndarray, dt: np.ndarray, batch: int = 512) -> tuple[np.ndarray, np.ndarray]:
         """Raw-unit (mean, sigma) [N, H, 3] for windows x [N, W, F] (unscaled), dt [N, W]."""
         means, sigmas = [], []
@@ -247,14 +247,27 @@ class Corrector:
                              "number of sub-steps); the fused solver stays bounded for any step: use --model ltc-fused")
         return mean, sigma
 
-    def correction(self, obs, params):
-        """The ``engine.Correction`` for one set of observations."""
-        from .engine import correction_from
+    def inputs(self, obs, params):
+        """(features, elapsed hours, frame angle, the prior's history correction) of one ``Observations``."""
+        from .engine import forcing_error, history_correction
         from .features import window_features
 
-        x, dt, angle = window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params))
-        mean, sigma = self.predict(x[None], dt[None])
-        return correction_from(mean[0], sigma[0], angle)
+        error = forcing_error(obs, params)
+        x, dt, angle = window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params),
+                                       drift_error=error)
+        return x, dt, angle, history_correction(obs, params, self.horizons_h)
+
+    def corrections(self, observations, params) -> list:
+        """One ``engine.Correction`` per ``Observations`` (one batched model call): the prior's own
+        correction from the observed history (``engine.history_correction``) plus what the model adds."""
+        from .engine import correction_from
+
+        inputs = [self.inputs(obs, params) for obs in observations]
+        mean, sigma = self.predict(np.array([i[0] for i in inputs]), np.array([i[1] for i in inputs]))
+        return [correction_from(m, s, i[2]).plus(i[3]) for m, s, i in zip(mean, sigma, inputs)]
+
+    def correction(self, obs, params):
+        return self.corrections([obs], params)[0]
 
 
 def load_checkpoint(path) -> tuple[SpillForecaster, dict]:

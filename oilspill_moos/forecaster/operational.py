@@ -72,20 +72,24 @@ class Forecaster:
         self.split = self.calibration.get("split", {"train": [], "val": [], "test": []})
 
     def forecast(self, geometries, times, environments=None, release_time: datetime | None = None,
-                 horizon_forcing=None) -> list[Forecast]:
+                 horizon_forcing=None, horizons_h=None) -> list[Forecast]:
         """Forecast from observations in time order (naive times are UTC). ``environments``: one
         ``features.Environment`` per observation (None: no forcing known); ``horizon_forcing``:
-        (time, Environment) pairs after the latest observation. ``release_time`` is accepted for old
-        callers and ignored: nothing in a forecast depends on when or where the spill began."""
+        (time, Environment) pairs after the latest observation; ``horizons_h``: any positive hours
+        (default 3, 7, 11, 15). ``release_time`` is accepted for old callers and ignored: nothing in a
+        forecast depends on when or where the spill began."""
         from . import engine as E
 
+        horizons_h = self.horizons_h if horizons_h is None else tuple(float(h) for h in horizons_h)
+        if not horizons_h or any(not h > 0 for h in horizons_h):
+            raise ValueError(f"horizons must be positive hours, not {list(horizons_h)}")
         obs = E.prepare(geometries, times, environments, horizon_forcing)
         correction = self.corrector.correction(obs, self.settings.params) if self.corrector is not None else None
         latest = F.as_utc(times[-1])
         return [Forecast(horizon_h=f.horizon_h, geometry=obs.plane.to_lonlat(f.geometry), uncertainty_m=f.uncertainty_m,
                          source=self.kind, valid_time=latest + timedelta(hours=f.horizon_h),
                          contour_50=obs.plane.to_lonlat(f.contour_50), contour_90=obs.plane.to_lonlat(f.contour_90))
-                for f in E.forecast_plane(self.kind, obs, self.horizons_h, self.settings, correction)]
+                for f in E.forecast_plane(self.kind, obs, horizons_h, self.settings, correction)]
 
 
 # ---------------------------------------------------------------------------------------------------

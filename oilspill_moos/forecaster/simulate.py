@@ -34,7 +34,7 @@ from scipy.ndimage import gaussian_filter
 from scipy.spatial import Delaunay
 from shapely.geometry import MultiPolygon, Polygon
 
-from .dataset import GULF_STEM, HELD_OUT_METHOD, HELD_OUT_REGIONS, Scenario, save_dataset
+from .dataset import GULF_STEM, HELD_OUT_METHOD, HELD_OUT_REGIONS, Scenario, dataset_metadata, load_dataset, save_dataset
 from .features import local_frame
 
 # Longitude bands of the land-free northern Gulf (release latitudes 26.0-28.8 N, checked at sea).
@@ -251,8 +251,11 @@ def footprint(method: str, x_m: np.ndarray, y_m: np.ndarray) -> MultiPolygon | N
 
 def run_scenario(params: dict, particles: int = 1000) -> Scenario:
     """Run OpenOil for one parameter set and turn each hourly output into a footprint."""
-    from opendrift.models.openoil import OpenOil
-    from opendrift.readers.reader_timeseries import Reader as TimeSeriesReader
+    import matplotlib
+
+    with matplotlib.rc_context():   # OpenDrift sets figure.autolayout for the whole process on import
+        from opendrift.models.openoil import OpenOil
+        from opendrift.readers.reader_timeseries import Reader as TimeSeriesReader
 
     release = datetime.fromisoformat(params["release_time"].replace("Z", "+00:00"))
     naive_release = release.replace(tzinfo=None)  # OpenDrift works in naive UTC
@@ -319,6 +322,8 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="parallel OpenDrift runs (default 2)")
     parser.add_argument("--max-minutes", type=float, default=25.0,
                         help="stop starting new runs after this many minutes; the set keeps what finished (default 25)")
+    parser.add_argument("--extend", action="store_true",
+                        help="keep the scenarios already at --output and run only the seeds of the plan not yet tried")
     parser.add_argument("--min-observations", type=int, default=24,
                         help="drop scenarios with fewer hourly footprints than this (default 24)")
     args = parser.parse_args(argv)
@@ -331,12 +336,26 @@ def main(argv=None) -> int:
         return 2
     plan = generation_plan(args.count, args.seed)
     generation = {"generator": "oilspill_moos.forecaster.simulate", "opendrift_version": opendrift.__version__,
-                  "command": ["simulate", *(argv if argv is not None else sys.argv[1:])],
-                  "base_seed": args.seed, "particles": args.particles, "count": args.count,
+                  "commands": [], "base_seed": args.seed, "particles": args.particles, "count": args.count,
                   "regions": REGIONS, "held_out_regions": list(HELD_OUT_REGIONS), "held_out_method": HELD_OUT_METHOD,
                   "train_methods": list(TRAIN_METHODS), "hdr": HDR, "forcing_errors": FORCING_ERRORS,
                   "dropped": []}
     scenarios = []
+    if args.extend and args.output.with_suffix(".json").exists():
+        # keep what is there (same seeds, so the same scenarios) and run only the seeds not yet tried
+        previous = dataset_metadata(args.output)
+        if previous.get("base_seed") != args.seed or previous.get("particles") != args.particles:
+            parser.error(f"{args.output}.json was made with --seed {previous.get('base_seed')} --particles "
+                         f"{previous.get('particles')}; --extend needs the same")
+        scenarios = load_dataset(args.output)
+        generation["dropped"] = previous.get("dropped", [])
+        generation["commands"] = previous.get("commands") or ([previous["command"]] if "command" in previous else [])
+        generation["generation_minutes"] = previous.get("generation_minutes", 0.0)
+        tried = {s.seed for s in scenarios} | {int(d["scenario_id"].rsplit("-", 1)[1]) for d in generation["dropped"]}
+        plan = [p for p in plan if p["seed"] not in tried]
+        print(f"extending {args.output}: {len(scenarios)} scenarios kept, {len(plan)} runs to go", flush=True)
+    generation["commands"].append(["simulate", *(argv if argv is not None else sys.argv[1:])])
+    previous_minutes = generation.get("generation_minutes", 0.0)
     from multiprocessing import get_context
 
     started = clock.monotonic()
@@ -344,6 +363,7 @@ def main(argv=None) -> int:
         for n, (scenario, took) in enumerate(pool.imap(_run, [(p, args.particles) for p in plan]), 1):
             if clock.monotonic() - started > 60 * args.max_minutes:
                 generation["stopped"] = f"after {n - 1} of {len(plan)} runs: --max-minutes {args.max_minutes:g} reached"
+                generation["generation_minutes"] = round(previous_minutes + (clock.monotonic() - started) / 60, 1)
                 save_dataset(scenarios, args.output, generation)
                 print(generation["stopped"], flush=True)
                 break
@@ -354,7 +374,8 @@ def main(argv=None) -> int:
                 generation["dropped"].append({"scenario_id": scenario.scenario_id, "observations": len(scenario)})
             print(f"[{n}/{len(plan)}] {scenario.scenario_id} ({scenario.params['method']}): {len(scenario)} hourly "
                   f"footprints, {took:.1f} s{'' if kept else ' (dropped: too short)'}", flush=True)
-            if n % 10 == 0 or n == len(plan):
+            if n % 5 == 0 or n == len(plan):
+                generation["generation_minutes"] = round(previous_minutes + (clock.monotonic() - started) / 60, 1)
                 save_dataset(scenarios, args.output, generation)
     print(json.dumps({"scenarios": len(scenarios), "dropped": len(generation["dropped"]), "output": str(args.output)}))
     return 0

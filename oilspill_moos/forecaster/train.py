@@ -24,6 +24,7 @@ import copy
 import hashlib
 import json
 import math
+import os
 import pickle
 import random
 import time
@@ -43,8 +44,10 @@ from .windows import scenario_cases
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 CALIBRATION_FILE = "calibration.json"
-# kind -> (learning rate, early-stopping patience in epochs); the LTC rates are the paper's.
-SOLVER_DEFAULTS = {"ltc-rk4": (3e-3, 6), "ltc-fused": (3e-3, 6), "ltc-euler": (3e-3, 6), "lstm": (3e-3, 6)}
+# kind -> (learning rate, early-stopping patience in epochs, sub-steps per observation); the LTC rates
+# are the paper's. RK4 takes 2 sub-steps (8 evaluations of the ODE per observation against Euler's 4),
+# which keeps one forecast within 50 ms on one core (benchmarks/forecaster_bench.py).
+SOLVER_DEFAULTS = {"ltc-rk4": (3e-3, 6, 2), "ltc-fused": (3e-3, 6, 4), "ltc-euler": (3e-3, 6, 4), "lstm": (3e-3, 6, 4)}
 
 
 @dataclass
@@ -58,7 +61,7 @@ class TrainConfig:
     patience: int | None = None        # None: SOLVER_DEFAULTS
     seed: int = 0
     hidden: int = 64
-    unfolds: int = 4
+    unfolds: int | None = None         # None: SOLVER_DEFAULTS
     adaptive: bool = False
     grad_clip: float = 1.0
     threads: int = 1
@@ -67,9 +70,10 @@ class TrainConfig:
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"--model must be one of {KINDS}, not {self.kind!r}")
-        lr, patience = SOLVER_DEFAULTS[self.kind]
+        lr, patience, unfolds = SOLVER_DEFAULTS[self.kind]
         self.lr = lr if self.lr is None else self.lr
         self.patience = patience if self.patience is None else self.patience
+        self.unfolds = unfolds if self.unfolds is None else self.unfolds
 
 
 @dataclass
@@ -116,26 +120,54 @@ class Examples:
 
 
 def case_example(case, params: DriftParameters, horizons_h=F.HORIZONS_H):
-    """(x, dt, y) of one case; y [H, 3] = frame residual km (2), log area ratio."""
+    """(x, dt, y) of one case; y [H, 3] = frame residual km (2) of the corrected prior (the prior moved
+    on by its history correction, ``engine.history_correction``), log area ratio."""
+    error = E.forcing_error(case.obs, params)
     x, dt, angle = F.window_features(case.obs.shapes, case.obs.times_s, case.obs.environments,
-                                     case.obs.drift_between(params))
+                                     case.obs.drift_between(params), drift_error=error)
     horizons_s = 3600.0 * np.asarray(horizons_h, float)
     moved, start = drift(case.obs.geometries[-1], 0.0, horizons_s, case.obs.track, params)
     method = ParticleFootprint(case.obs.geometries[-1], start)
     back = F.rotation(-angle)
     y = np.zeros((len(horizons_h), 3))
     for j, (p, truth) in enumerate(zip(moved, case.truth_shapes)):
-        y[j, :2] = back @ (truth.centroid - p.mean(axis=0)) / 1e3
+        y[j, :2] = back @ (truth.centroid - p.mean(axis=0) - error * horizons_s[j]) / 1e3
         y[j, 2] = math.log(truth.area / max(method.area(p), 1.0))
     return x, dt, y
 
 
-def build_examples(scenarios, params: DriftParameters, noise_draws: int = 1, progress: bool = True) -> Examples:
+def exact_draw(draw: int) -> bool:
+    """Every third noise draw of a training scenario is given the exact forcing, the others the erroneous
+    one: the model sees both, and learns to trust the forcing where the history agrees with it."""
+    return draw % 3 == 2
+
+
+def scenario_examples(scenario, draw: int, params: DriftParameters, cache_dir: Path | None = None) -> list:
+    """[(x, dt, y)] of one scenario and noise draw; read from / written to ``cache_dir`` (one pickle per
+    scenario and draw, reused only when built from the same scenario, draw, prior and features)."""
+    key = {"scenario_id": scenario.scenario_id, "seed": scenario.seed, "observations": len(scenario), "draw": draw,
+           "exact": exact_draw(draw), "drift": params.to_dict(), "features": list(F.FEATURE_NAMES),
+           "targets": list(F.TARGET_NAMES), "drift_memory": [E.DRIFT_MEMORY_H, E.DRIFT_SHRINK_H]}
+    path = None if cache_dir is None else Path(cache_dir) / f"{scenario.scenario_id}-{draw}.pkl"
+    if path is not None and path.is_file():
+        blob = pickle.loads(path.read_bytes())
+        if blob.get("key") == key:
+            return blob["examples"]
+    examples = [case_example(case, params) for case in scenario_cases(scenario, noise_seed=draw, exact=exact_draw(draw))]
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.part")
+        partial.write_bytes(pickle.dumps({"key": key, "examples": examples}))
+        partial.replace(path)       # atomic: a concurrent reader sees the old file or the whole new one
+    return examples
+
+
+def build_examples(scenarios, params: DriftParameters, noise_draws: int = 1, progress: bool = True,
+                   cache_dir: Path | None = None) -> Examples:
     xs, dts, ys, ids = [], [], [], []
     jobs = [(s, d) for s in scenarios for d in range(noise_draws)]
     for s, d in tqdm(jobs, desc="examples", disable=not progress, leave=False):
-        for case in scenario_cases(s, noise_seed=d):
-            x, dt, y = case_example(case, params)
+        for x, dt, y in scenario_examples(s, d, params, cache_dir):
             xs.append(x), dts.append(dt), ys.append(y), ids.append(s.scenario_id)
     return Examples(np.array(xs), np.array(dts), np.array(ys), ids)
 
@@ -224,14 +256,23 @@ def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F
     factors = {}
     for kind in kinds:
         ratios = []
-        for case in cases:
-            correction = correctors[kind].correction(case.obs, settings.params) if kind in correctors else None
+        corrections = (correctors[kind].corrections([c.obs for c in cases], settings.params) if kind in correctors
+                       else [None] * len(cases))
+        for case, correction in zip(cases, corrections):
             out = E.forecast_plane(kind, case.obs, horizons_h, E.Settings(settings.params, {}, settings.members),
                                    correction, contours=False)
             ratios.append([np.linalg.norm(f.centroid - t.centroid) / max(f.raw_spread_m, 1e-6)
                            for f, t in zip(out, case.truth_shapes)])
-        factors[kind] = [float(np.quantile(r, 0.95) / E.RADIUS_95) for r in np.array(ratios).T]
+        factors[kind] = [float(conformal_quantile(r, 0.95) / E.RADIUS_95) for r in np.array(ratios).T]
     return factors
+
+
+def conformal_quantile(scores: np.ndarray, level: float) -> float:
+    """The split-conformal quantile: the ceil((n + 1) level)-th smallest of n scores, so that a new
+    exchangeable case falls below it with probability at least ``level``."""
+    ordered = np.sort(np.asarray(scores, float))
+    k = min(math.ceil((len(ordered) + 1) * level), len(ordered))
+    return float(ordered[k - 1])
 
 
 def read_calibration(weights_dir: Path) -> dict:
@@ -246,17 +287,9 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _read_examples(path, key: dict):
-    """(train, val) examples from ``path`` if it holds ones built for ``key``, else None."""
-    if path is None or not Path(path).is_file():
-        return None
-    blob = pickle.loads(Path(path).read_bytes())
-    return (blob["train"], blob["val"]) if blob.get("key") == key else None
-
-
 def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0, noise_draws: int = 3,
                  progress: bool = True, adaptive_fused: bool = False, examples_cache: Path | None = None,
-                 **overrides) -> dict:
+                 calibrate: bool = True, **overrides) -> dict:
     """Train each kind on the same examples and scalers; write ``<kind>.pt``, then calibrate every kind
     (learned and baselines) on the validation split into ``calibration.json`` (with the training record)."""
     from . import dataset as D
@@ -266,15 +299,8 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     split = D.split_scenarios(scenarios, seed=split_seed)
     params = DriftParameters()
     started = time.perf_counter()
-    sha = file_sha256(stem.with_suffix(".npz"))
-    key = {"dataset_sha256": sha, "noise_draws": noise_draws, "drift": params.to_dict(), "split_seed": split_seed}
-    cached = _read_examples(examples_cache, key)
-    if cached is None:
-        train_ex, val_ex = build_examples(split.train, params, noise_draws, progress), build_examples(split.val, params, 1, progress)
-        if examples_cache is not None:
-            Path(examples_cache).write_bytes(pickle.dumps({"key": key, "train": train_ex, "val": val_ex}))
-    else:
-        train_ex, val_ex = cached
+    train_ex = build_examples(split.train, params, noise_draws, progress, examples_cache)
+    val_ex = build_examples(split.val, params, 1, progress, examples_cache)
     feature_scaler = F.FeatureScaler.fit(train_ex.x.reshape(-1, train_ex.x.shape[-1]))
     mean, std = train_ex.y.mean(axis=0), np.maximum(train_ex.y.std(axis=0), 1e-6)
     extra = {"feature_scaler": feature_scaler.to_dict(), "target_scaler": {"mean": mean.tolist(), "std": std.tolist()},
@@ -304,14 +330,24 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
         if progress:
             print(f"{kind}: best epoch {best['epoch']} of {len(history)}, val MSE {best['val']['mse']:.4f}, "
                   f"{record[kind]['train_seconds']} s -> {out_dir / (kind + '.pt')}", flush=True)
-    write_calibration(out_dir, split, params, record, progress)
+    if calibrate:
+        write_calibration(out_dir, split, params, record, progress)
+    else:
+        merge_training_record(out_dir, record)
     return record
 
 
+def merge_training_record(out_dir: Path, record: dict) -> None:
+    """Add ``record`` to ``calibration.json``'s training record without recalibrating."""
+    blob = read_calibration(out_dir)
+    blob["training"] = {**blob.get("training", {}), **record}
+    (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
+
+
 def write_calibration(out_dir: Path, split, params: DriftParameters, record: dict, progress: bool = True) -> dict:
-    """Calibrate every kind with weights in ``out_dir`` and every baseline. Learned kinds on the
-    validation split (on training cases their errors are optimistically small); the baselines and
-    the prior, which learn nothing, on training and validation cases (more cases, the same regions).
+    """Calibrate every kind with weights in ``out_dir`` and every baseline on every observation of the
+    validation split (never trained on: on training cases the learned kinds' errors are optimistically
+    small).
 
     The recorded split's ``test`` lists every scenario never used for training or calibration: the
     Gulf set's out-of-distribution split and the whole DWH-site set (the demos replay those)."""
@@ -319,18 +355,17 @@ def write_calibration(out_dir: Path, split, params: DriftParameters, record: dic
     from .models import Corrector
 
     correctors = {k: Corrector.load(out_dir / f"{k}.pt") for k in KINDS if (out_dir / f"{k}.pt").is_file()}
-    val_cases = [c for s in split.val for c in scenario_cases(s, stride=3)]
-    all_cases = val_cases + [c for s in split.train for c in scenario_cases(s, stride=3)]
+    val_cases = [c for s in split.val for c in scenario_cases(s, stride=1)]
     settings = E.Settings(params)
     factors = {}
     for kind in tqdm([*correctors, *E.BASELINE_KINDS], desc="calibration", disable=not progress):
-        factors.update(calibrate(val_cases if kind in correctors else all_cases, [kind], settings, correctors))
+        factors.update(calibrate(val_cases, [kind], settings, correctors))
     ids = split.ids()
     ids["test"] = ids["test"] + [s.scenario_id for s in load_dataset()]
     # re-read just before writing: another `train --model` run may share the directory
     record = {**read_calibration(out_dir).get("training", {}), **record}
     blob = {"drift": params.to_dict(), "spread_scale": factors,
-            "calibration_cases": {"learned": len(val_cases), "baselines": len(all_cases)},
+            "calibration_cases": len(val_cases),
             "members": settings.members, "split": ids, "training": record}
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
     return blob
@@ -349,12 +384,16 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     parser.add_argument("--split-seed", type=int, default=0)
     parser.add_argument("--noise-draws", type=int, default=3, help="observation-noise draws per training scenario")
     parser.add_argument("--hidden", type=int, default=TrainConfig.hidden)
-    parser.add_argument("--unfolds", type=int, default=TrainConfig.unfolds)
+    parser.add_argument("--unfolds", type=int, help="LTC sub-steps per observation (default: per solver, 2 for RK4, 4 otherwise)")
     parser.add_argument("--adaptive", action="store_true", help="adaptive step for the ltc-fused model")
     parser.add_argument("--threads", type=int, default=TrainConfig.threads)
     parser.add_argument("--max-minutes", type=float, help="wall-clock cap per model")
-    parser.add_argument("--examples-cache", type=Path, help="pickle of the built examples: reused when it was built "
-                        "from the same dataset, noise draws and prior, written otherwise (building takes minutes)")
+    parser.add_argument("--examples-cache", type=Path, help="directory of built examples, one file per scenario and "
+                        "noise draw: reused when built from the same scenario, prior and features, written otherwise "
+                        "(building takes minutes)")
+    parser.add_argument("--no-calibration", action="store_true",
+                        help="train only (add to the training record); calibrate later with --calibrate-only, e.g. "
+                        "after training the kinds in two processes")
     parser.add_argument("--calibrate-only", action="store_true",
                         help="train nothing: recalibrate the kinds whose weights are in --out")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -375,5 +414,5 @@ def main(argv=None, args: argparse.Namespace | None = None) -> int:
                  "max_seconds": None if args.max_minutes is None else 60 * args.max_minutes}
     train_models(kinds, dataset_stem=args.dataset, out_dir=args.out, split_seed=args.split_seed,
                  noise_draws=args.noise_draws, progress=not args.quiet, adaptive_fused=args.adaptive,
-                 examples_cache=args.examples_cache, **overrides)
+                 examples_cache=args.examples_cache, calibrate=not args.no_calibration, **overrides)
     return 0

@@ -5,7 +5,7 @@ import pytest
 from shapely import affinity
 from shapely.geometry import Point
 
-from oilspill_moos.forecaster.assimilate import SensorReadings, reanchor
+from oilspill_moos.forecaster.assimilate import SensorReadings, reanchor, reanchored_history
 from oilspill_moos.forecaster.features import plane_to_lonlat, to_lonlat, to_plane
 
 
@@ -33,3 +33,22 @@ def test_no_readings_change_nothing():
     forecast = to_lonlat(Point(0, 0).buffer(3_000))
     empty = SensorReadings(*(np.array([]) for _ in range(5)))
     assert reanchor(forecast, empty) is forecast
+
+
+def test_the_history_moves_with_the_anchor():
+    """A forecast 1.5 km off a known truth: the re-anchored outline is appended, and every earlier
+    observation is moved by the same shift, so the observed motion between them is unchanged."""
+    truth = Point(5_000, 2_000).buffer(4_000, quad_segs=32)
+    forecast = affinity.translate(truth, -1_500.0, 0.0)
+    history = [affinity.translate(truth, -1_500.0 - 2_000.0 * k, 0.0) for k in (3, 2, 1)]
+    xy = np.vstack([np.array([ring.interpolate(d).coords[0] for d in np.linspace(0, ring.length, 60, endpoint=False)])
+                    for ring in (forecast.buffer(b).exterior for b in (-2_000, -1_000, 0, 1_000, 2_000))])
+    oil = np.array([truth.distance(Point(x, y)) <= 100.0 for x, y in xy])
+    lon, lat = plane_to_lonlat(xy[:, 0], xy[:, 1])
+    readings = SensorReadings(np.asarray(lon), np.asarray(lat), oil, np.full(len(xy), 100.0), np.zeros(len(xy)))
+    out = [to_plane(g) for g in reanchored_history([to_lonlat(g) for g in history], to_lonlat(forecast), readings)]
+    assert len(out) == 4 and abs(out[-1].centroid.x - truth.centroid.x) < 300
+    shift = np.subtract(out[-1].centroid.coords[0], forecast.centroid.coords[0])
+    assert shift[0] > 1_200 and abs(shift[1]) < 300
+    for before, after in zip(history, out[:-1]):
+        assert np.allclose(np.subtract(after.centroid.coords[0], before.centroid.coords[0]), shift, atol=1.0)

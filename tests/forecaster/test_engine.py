@@ -14,7 +14,7 @@ from shapely.geometry import MultiPolygon, Point
 from oilspill_moos.forecaster import engine as E
 from oilspill_moos.forecaster import features as F
 from oilspill_moos.forecaster.models import Corrector, build_model
-from oilspill_moos.forecaster.physics import ForcingTrack
+from oilspill_moos.forecaster.physics import ForcingTrack, drift_velocity
 
 
 def planar_observations(geometries, times_h, forcing, ahead=()):
@@ -88,11 +88,10 @@ def test_forecast_moves_with_a_translated_and_rotated_input(shift_x, shift_y, an
     original, transformed, move = case(shift_x, shift_y, angle)
     corrector = random_corrector()
     params = E.DriftParameters()
-    x0, _, _ = F.window_features(original.shapes, original.times_s, original.environments, original.drift_between(params))
-    x1, _, _ = F.window_features(transformed.shapes, transformed.times_s, transformed.environments,
-                                 transformed.drift_between(params))
+    x0, x1 = (corrector.inputs(o, params)[0] for o in (original, transformed))
     assert np.allclose(x0, x1, atol=1e-6)                       # nothing in the features says where
-    for kind in ("physics", "constant-velocity-growth", "ltc-fused"):
+    assert np.abs(x0[:, F.FEATURE_INDEX["error_u"]]).max() > 1e-3   # the forcing-error estimate is among them
+    for kind in ("physics", "physics-corrected", "constant-velocity-growth", "ltc-fused"):
         corrections = [corrector.correction(o, params) if kind == "ltc-fused" else None for o in (original, transformed)]
         a = E.forecast_plane(kind, original, (3, 15), E.Settings(), corrections[0], contours=False)
         b = E.forecast_plane(kind, transformed, (3, 15), E.Settings(), corrections[1], contours=False)
@@ -102,3 +101,53 @@ def test_forecast_moves_with_a_translated_and_rotated_input(shift_x, shift_y, an
             assert iou(expected, fb.geometry) > 0.85, kind
             assert np.linalg.norm(np.asarray(expected.centroid.coords[0]) - fb.centroid) < 0.05 * size, kind
             assert fb.uncertainty_m == pytest.approx(fa.uncertainty_m, rel=0.02), kind
+
+
+def drifting_history(offset, forcing_row, hours, size=2_000.0):
+    """A round slick observed at ``hours`` moving exactly at the forcing's drift plus ``offset`` (m/s)."""
+    params = E.DriftParameters()
+    velocity = drift_velocity(np.asarray(forcing_row, float), params.windage, params.deflection_deg) + offset
+    hours = np.asarray(hours, float)
+    geoms = [Point(*(velocity * 3600.0 * h)).buffer(size, quad_segs=32) for h in hours]
+    return planar_observations(geoms, hours, np.tile(forcing_row, (len(hours), 1)), ahead=[forcing_row] * 15)
+
+
+def test_forcing_error_recovers_a_known_drift_error():
+    """Known answer: the slick moves at the forcing's drift plus (0.12, -0.05) m/s. Weighted least squares
+    recovers that velocity, pulled towards zero by exactly the documented ridge factor."""
+    hours = np.array([0, 1, 2, 3, 5, 6, 8, 9, 10, 12.0])
+    offset = np.array([0.12, -0.05])
+    obs = drifting_history(offset, [7.0, -2.0, 0.2, 0.1], hours)
+    t = 3600.0 * (hours - hours[-1])
+    w = np.exp(t / (3600.0 * E.DRIFT_MEMORY_H))
+    spread = (w * (t - (w * t).sum() / w.sum()) ** 2).sum()
+    shrink = spread / (spread + (3600.0 * E.DRIFT_SHRINK_H) ** 2)
+    error = E.forcing_error(obs, E.DriftParameters())
+    assert np.allclose(error, shrink * offset, atol=1e-4) and 0.5 < shrink < 1
+    # exact forcing: nothing to correct; one observation: nothing known
+    assert np.allclose(E.forcing_error(drifting_history(np.zeros(2), [7.0, -2.0, 0.2, 0.1], hours), E.DriftParameters()),
+                       0.0, atol=1e-5)
+    assert np.allclose(E.forcing_error(drifting_history(offset, [7.0, -2.0, 0.2, 0.1], [0.0]), E.DriftParameters()), 0.0)
+    # and the corrected prior carries it on over any horizon
+    for horizon in (2.5, 9.0, 20.0):
+        physics, corrected = (E.forecast_plane(k, obs, (horizon,), E.Settings(), contours=False)[0]
+                              for k in ("physics", "physics-corrected"))
+        assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * error, atol=0.02 * 2_000.0)
+
+
+def test_learned_correction_at_any_horizon():
+    """Rows at the trained horizons are kept; between them the correction is linear in the horizon (from
+    zero at 0 h), past the last one in proportion to the horizon."""
+    drift = np.array([[300.0, -30.0], [700.0, -70.0], [1_100.0, -110.0], [1_500.0, -150.0]])
+    c = E.Correction(drift, np.array([0.1, 0.2, 0.25, 0.3]), np.array([[50.0, 50.0], [90, 90], [120, 120], [150, 150]]))
+    at = c.at((3, 5, 1.5, 15, 30))
+    assert np.allclose(at.drift_m, [[300, -30], [500, -50], [150, -15], [1_500, -150], [3_000, -300]])
+    assert np.allclose(at.log_area, [0.1, 0.15, 0.05, 0.3, 0.6])
+    assert np.allclose(at.sigma_m[:, 0], [50, 70, 25, 150, 300])
+    with pytest.raises(ValueError, match="positive"):
+        c.at((0, 3))
+    obs = drifting_history(np.array([0.05, 0.02]), [7.0, -2.0, 0.2, 0.1], np.arange(8.0))
+    corrector = random_corrector()
+    out = E.forecast_plane("ltc-fused", obs, (1, 5.5, 15, 24), E.Settings(), corrector.correction(obs, E.DriftParameters()))
+    assert [f.horizon_h for f in out] == [1, 5.5, 15, 24]
+    assert all(f.geometry.area > 0 and f.geometry.is_valid and f.uncertainty_m > 0 for f in out)

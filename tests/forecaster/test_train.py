@@ -1,9 +1,11 @@
 """Training reduces the loss on a tiny learnable set; checkpoints round-trip; the paper's settings apply."""
+import numpy as np
 import pytest
 import torch
 
 from oilspill_moos.forecaster.models import load_checkpoint
-from oilspill_moos.forecaster.train import SOLVER_DEFAULTS, TrainConfig, WindowTensors, fit, forecast_loss
+from oilspill_moos.forecaster.train import (SOLVER_DEFAULTS, TrainConfig, WindowTensors, conformal_quantile, fit,
+                                           forecast_loss)
 
 
 def tiny_set(n: int, seed: int) -> WindowTensors:
@@ -48,3 +50,13 @@ def test_mismatched_or_empty_windows_are_refused():
         WindowTensors(torch.zeros(3, 16, 25), torch.zeros(2, 16), torch.zeros(3, 4, 2))
     with pytest.raises(ValueError, match="no windows"):
         WindowTensors(torch.zeros(0, 16, 25), torch.zeros(0, 16), torch.zeros(0, 4, 2))
+
+
+def test_conformal_quantile_holds_a_new_case_with_the_promised_probability():
+    """Split conformal: of n exchangeable scores, the ceil((n + 1) p)-th smallest bounds a new one with
+    probability >= p. Known answers on small sets, and the coverage on fresh draws."""
+    assert conformal_quantile(np.arange(1.0, 20.0), 0.95) == 19.0          # n = 19: the 19th (largest)
+    assert conformal_quantile(np.arange(1.0, 40.0), 0.95) == 38.0          # n = 39: ceil(38) = 38th
+    rng = np.random.default_rng(0)
+    hits = [rng.rayleigh() <= conformal_quantile(rng.rayleigh(size=50), 0.95) for _ in range(4000)]
+    assert 0.95 <= np.mean(hits) <= 0.975
