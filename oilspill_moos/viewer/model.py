@@ -17,7 +17,7 @@ import shapely
 
 from behaviors.contacts import NodeRecord, NodeRecordError
 from behaviors.geometry import GeometryError, parse_point, parse_polygon, parse_seglist
-from moosdb_py.formats import parse_pairs
+from moosdb_py.formats import FormatError, parse_bool, parse_pairs, split_fields, unquote
 from oilspill_moos import messages
 from oilspill_moos.messages import parse_observation
 
@@ -67,20 +67,21 @@ def parse_node_report(text: str, grid=None) -> NodeReport:
                       length=record.length, time=record.time)
 
 
-def _properties(text: str) -> dict[str, str]:
-    """The `key=value` items of a VIEW_* string outside its `pts={...}` braces (keys lower-cased)."""
-    start = text.lower().find("pts={")
-    if start >= 0:
-        end = text.find("}", start)
-        text = text[:start] + (text[end + 1:] if end >= 0 else "")
+def _properties(key: str, text: str) -> dict[str, str]:
+    """The `key=value` fields of a VIEW_* string (keys lower-cased), split as every MOOS string is
+    (formats.split_fields: commas inside `pts={...}` or quotes do not split; quotes go); a bare word is no field."""
     for prefix in ("radial::", "format=radial"):
         if text.lower().lstrip().startswith(prefix):
             text = text.lstrip()[len(prefix):]
+    try:
+        items = split_fields(text)
+    except FormatError as exc:
+        raise ViewError(f"{key} {text[:80]!r}: {exc}") from None
     props = {}
-    for item in text.split(","):
-        key, sep, value = item.partition("=")
-        if sep and key.strip():
-            props[key.strip().lower()] = value.strip()
+    for item in items:
+        name, sep, value = item.partition("=")
+        if sep and name.strip():
+            props[name.strip().lower()] = unquote(value)
     return props
 
 
@@ -106,8 +107,11 @@ def parse_view(key: str, text: str) -> Marker:
     kind = VIEW_KINDS.get(key)
     if kind is None:
         raise ViewError(f"{key} is not a VIEW_POLYGON, VIEW_SEGLIST or VIEW_POINT")
-    props = _properties(text)
-    active = props.pop("active", "true").lower() != "false"
+    props = _properties(key, text)
+    try:
+        active = parse_bool(props.pop("active", "true"))
+    except FormatError as exc:
+        raise ViewError(f"{key} {text[:80]!r}: active: {exc}") from None
     label = props.pop("label", "")
     try:
         if kind == "point":
@@ -304,12 +308,13 @@ class Scene:
             return [marker.as_update()]
         if key == "OILSPILL_BOUNDARY":
             try:
-                boundary = parse_seglist(text).tolist()
-            except GeometryError as exc:
-                raise ViewError(f"OILSPILL_BOUNDARY {text!r}: {exc}") from None
+                vertices, fields = messages.parse_polygon_string(text)
+            except messages.BoundaryError as exc:
+                raise ViewError(f"OILSPILL_BOUNDARY {text[:80]!r}: {exc}") from None
+            boundary = [list(v) for v in vertices]
             pushed = text != self.boundary_text
             self.boundary, self.boundary_text = boundary, text
-            label = _properties(text).get("label", "")
+            label = fields.get("label", "")
             return [{"t": "boundary", "points": self.boundary, "label": label},
                     *([self.note("event", f"boundary in force: {label or 'pushed'}, {len(boundary)} vertices", time)]
                       if pushed else [])]

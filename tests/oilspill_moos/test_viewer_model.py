@@ -84,6 +84,15 @@ def test_view_polygon_point_list_may_be_concave_and_inactive_ones_need_no_points
     assert (erase.label, erase.active, erase.points) == ("standoff", False, ())
 
 
+def test_view_active_is_a_moos_boolean_and_quoted_labels_keep_their_commas():
+    assert not parse_view("VIEW_POLYGON", "label=standoff,active=off").active
+    assert parse_view("VIEW_POINT", 'x=1,y=2,label="abe, next",active=1').label == "abe, next"
+    with pytest.raises(ViewError, match="VIEW_POLYGON .*active"):
+        parse_view("VIEW_POLYGON", "pts={0,0:1,0:1,1},label=standoff,active=maybe")
+    with pytest.raises(ViewError, match="unclosed double quote"):
+        parse_view("VIEW_POINT", 'x=1,y=2,label="abe')
+
+
 def test_view_seglist_and_point_as_the_waypoint_behaviour_posts_them():
     seglist = parse_view("VIEW_SEGLIST", "pts={10,-20:30,-40:50,-60},label=abe_waypt_loop,edge_color=gray50")
     assert seglist.points == ((10, -20), (30, -40), (50, -60)) and seglist.label == "abe_waypt_loop"
