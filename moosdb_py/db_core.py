@@ -143,7 +143,8 @@ class DBClient:
 
 
 # What the shell does on one connection: (client, bytes to write, then CLOSE, ABORT or None); for an
-# in-process client a list of MOOSMsgs instead of the bytes. A plain tuple: a NamedTuple made per answer cost a measurable part of a small packet's trip through the DB.
+# in-process client a list of MOOSMsgs instead of the bytes. A plain tuple: a NamedTuple made per
+# answer cost a measurable part of a small packet's trip through the DB.
 Outgoing = tuple[DBClient, bytes, "str | None"]
 
 

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import Polygon
 
+from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.demo import status_horizon
 from oilspill_moos.forecaster.push import BoundaryPusher
-from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.messages import parse_boundary_line
 from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
 from oilspill_moos.response.measures import (
