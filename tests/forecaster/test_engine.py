@@ -135,6 +135,38 @@ def test_forcing_error_recovers_a_known_drift_error():
         assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * error, atol=0.02 * 2_000.0)
 
 
+def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_one():
+    """Known answer: uniform flow the forcing misses by (0.12, -0.05) m/s. With forcing over the horizon
+    the estimate is the documented posterior mean (residual as consistent as the centroid noise); held,
+    the prior is wider and it recovers the bias more closely. A residual that zigzags about its trend
+    (forcing that explains the motion only on average) is pulled further towards zero; a track the
+    forcing explains gives zero in both modes."""
+    hours = np.array([0, 1, 2, 3, 5, 6, 8, 9, 10, 12.0])
+    offset = np.array([0.12, -0.05])
+    ahead = drifting_history(offset, [7.0, -2.0, 0.2, 0.1], hours)
+    held = E.Observations(ahead.plane, ahead.geometries, ahead.shapes, ahead.times_s, ahead.environments,
+                          ForcingTrack(ahead.track.times_s[:len(hours)], ahead.track.values[:len(hours)]))
+    assert ahead.forcing_ahead and not held.forcing_ahead
+    params = E.DriftParameters()
+    t = 3600.0 * (hours - hours[-1])
+    w = np.exp(t / (3600.0 * E.DRIFT_MEMORY_H))
+    lever = (w * (t - (w * t).sum() / w.sum()) ** 2).sum()
+    for obs, prior in ((ahead, E.DRIFT_PRIOR_MS[True]), (held, E.DRIFT_PRIOR_MS[False])):
+        shrink = lever / (lever + (E.CENTROID_NOISE_M / prior) ** 2)
+        assert np.allclose(E.forcing_error(obs, params), shrink * offset, atol=1e-4)
+    assert np.linalg.norm(E.forcing_error(held, params) - offset) < np.linalg.norm(E.forcing_error(ahead, params) - offset) < 0.05
+    assert np.linalg.norm(E.forcing_error(held, params) - offset) < 0.01
+    # the same mean miss, but each observation 600 m off the line in turn: less trust
+    zigzag = [affinity.translate(g, 600.0 * (-1) ** k, 0.0) for k, g in enumerate(ahead.geometries)]
+    erratic = planar_observations(zigzag, hours, ahead.environments, ahead=[[7.0, -2.0, 0.2, 0.1]] * 15)
+    assert np.linalg.norm(E.forcing_error(erratic, params)) < 0.5 * np.linalg.norm(E.forcing_error(ahead, params))
+    exact = drifting_history(np.zeros(2), [7.0, -2.0, 0.2, 0.1], hours)
+    exact_held = E.Observations(exact.plane, exact.geometries, exact.shapes, exact.times_s, exact.environments,
+                                ForcingTrack(exact.track.times_s[:len(hours)], exact.track.values[:len(hours)]))
+    for obs in (exact, exact_held):
+        assert np.allclose(E.forcing_error(obs, params), 0.0, atol=1e-5)
+
+
 def test_learned_correction_at_any_horizon():
     """Rows at the trained horizons are kept; between them the correction is linear in the horizon (from
     zero at 0 h), past the last one in proportion to the horizon."""
