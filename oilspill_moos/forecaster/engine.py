@@ -11,7 +11,8 @@ Kinds (``KINDS``):
   spread by diffusion, with the published default parameters;
 - ``physics-corrected``: the prior with the forcing error estimated from the observed history
   (``forcing_error``): the observed centroids' motion against the forcing-predicted motion gives a
-  drift correction, carried on over the horizon;
+  drift correction, carried on over the horizon; its footprint is scaled to the observed area trend
+  (``trend_area``, as constant-velocity-growth grows);
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
   its drift (residual displacement), its spreading (area ratio) and the spread of its error.
 
@@ -179,16 +180,29 @@ def trend(obs: Observations, window_h: float = TREND_H) -> tuple[np.ndarray, flo
     return (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / denom, float((tc * (a - a.mean())).sum() / denom)
 
 
+def trend_area(obs: Observations, horizon_s: float) -> float:
+    """The latest area grown on at the ``trend`` rate for ``horizon_s``, never below a quarter of it."""
+    area = obs.shapes[-1].area
+    return max(area + trend(obs)[1] * horizon_s, 0.25 * area)
+
+
 def baseline_geometry(kind: str, obs: Observations, horizon_s: float) -> BaseGeometry:
     last, shape = obs.geometries[-1], obs.shapes[-1]
     if kind == "persistence":
         return last
-    velocity, rate = trend(obs)
+    velocity, _ = trend(obs)
     moved = affinity.translate(last, *(velocity * horizon_s))
     if kind == "constant-velocity":
         return moved
-    factor = math.sqrt(max(shape.area + rate * horizon_s, 0.25 * shape.area) / shape.area)
-    return affinity.scale(moved, factor, factor, origin=tuple(shape.centroid + velocity * horizon_s))
+    return scaled_to(moved, trend_area(obs, horizon_s))
+
+
+def scaled_to(geometry: BaseGeometry, area: float) -> BaseGeometry:
+    """``geometry`` scaled about its centroid to ``area`` (its centroid and shape kept)."""
+    if geometry.is_empty or geometry.area <= 0:
+        return geometry
+    factor = math.sqrt(area / geometry.area)
+    return affinity.scale(geometry, factor, factor, origin=tuple(F.second_moments(geometry)[1]))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -368,16 +382,19 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         raw = np.broadcast_to(z, (len(horizons_s), *z.shape))
     else:
         moved, start = drift(obs.geometries[-1], 0.0, horizons_s, obs.track, settings.params)
+        method = ParticleFootprint(obs.geometries[-1], start)
         raw = forcing_offsets(obs, horizons_s, settings.params, forcing_members(settings.members))
         if correction is not None:
             for j, p in enumerate(moved):
                 m = p.mean(axis=0)
                 moved[j] = m + math.exp(0.5 * correction.log_area[j]) * (p - m) + correction.drift_m[j]
             raw = raw + z[None] * correction.sigma_m[:, None, :]
-        method = ParticleFootprint(obs.geometries[-1], start)
         drawn = [method.draw(p) for p in moved]
         geometries = [d[2] for d in drawn]
         masks = [(d[0], d[1]) for d in drawn]
+        if kind == "physics-corrected":     # spreading corrected too: scaled to the observed area trend
+            geometries = [scaled_to(g, trend_area(obs, h)) for g, h in zip(geometries, horizons_s)]
+            masks = None
     out = []
     for j, h in enumerate(horizons_h):
         offsets = raw[j] * scale[j]

@@ -167,6 +167,23 @@ def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_o
         assert np.allclose(E.forcing_error(obs, params), 0.0, atol=1e-5)
 
 
+def test_physics_corrected_spreads_at_the_observed_area_trend():
+    """Known answer: a round slick drifting exactly with the forcing, its area growing by 4 km^2 an hour.
+    physics-corrected keeps the prior's drift and grows to the trend's area at every horizon."""
+    forcing = [6.0, 1.0, 0.1, -0.05]
+    params = E.DriftParameters()
+    velocity = drift_velocity(np.asarray(forcing), params.windage, params.deflection_deg)
+    hours = np.arange(8.0)
+    geoms = [Point(*(velocity * 3600.0 * h)).buffer(math.sqrt((20e6 + 4e6 * h) / math.pi), quad_segs=64) for h in hours]
+    obs = planar_observations(geoms, hours, np.tile(forcing, (len(hours), 1)), ahead=[forcing] * 15)
+    for horizon in (3.0, 15.0):
+        physics, corrected = (E.forecast_plane(k, obs, (horizon,), E.Settings(), contours=False)[0]
+                              for k in ("physics", "physics-corrected"))
+        assert corrected.geometry.area == pytest.approx(E.trend_area(obs, 3600.0 * horizon), rel=0.08)
+        assert E.trend_area(obs, 3600.0 * horizon) == pytest.approx(48e6 + 4e6 * horizon, rel=1e-3)
+        assert np.linalg.norm(corrected.centroid - physics.centroid) < 100.0
+
+
 def test_learned_correction_at_any_horizon():
     """Rows at the trained horizons are kept; between them the correction is linear in the horizon (from
     zero at 0 h), past the last one in proportion to the horizon."""
