@@ -1,15 +1,17 @@
 """The committed OpenDrift/OpenOil scenario set: storage, loading, and scenario-level splits.
 
-One scenario is one simulated release at the Deepwater Horizon site: an hourly sequence of surface-oil
-polygons (EPSG:4326) with the forcing that drove it. Polygons are stored as shapely ragged arrays in a
-compressed ``.npz``; the generation parameters and seeds of every scenario sit beside it in a ``.json``
+One scenario is one simulated release: an hourly sequence of surface-oil polygons (EPSG:4326) with the
+forcing that drove it. Polygons are stored as shapely ragged arrays in a compressed ``.npz``, vertices
+quantised to ``COORD_STEP_DEG`` and delta-encoded (``pack_coords``), LZMA-compressed; the generation parameters and seeds of every scenario sit beside it in a ``.json``
 so the set can be regenerated (``oilspill-forecaster simulate``). Splits are by scenario, never by
 window, so no hour of a test scenario is ever seen in training.
 """
 from __future__ import annotations
 
+import io
 import json
 import math
+import zipfile
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -28,6 +30,9 @@ GULF_STEM = DATA_DIR / "gulf_scenarios"            # the training/evaluation set
 HELD_OUT_REGIONS = ("west", "dwh")
 HELD_OUT_METHOD = "alpha-shape"
 FORCING_COLUMNS = ("wind_u", "wind_v", "current_u", "current_v", "sea_temp_c")
+# Stored vertices are rounded to this grid (5e-5 deg: 5.6 m north-south, under 5 m east-west in the
+# Gulf), far below the IoU scale of a km-sized slick (docs/forecaster-data.md gives the measured effect).
+COORD_STEP_DEG = 5e-5
 
 
 @dataclass
@@ -106,6 +111,35 @@ def _parse_time(text: str) -> datetime:
     return datetime.fromisoformat(text.replace("Z", "+00:00")).astimezone(timezone.utc)
 
 
+def pack_coords(coords: np.ndarray, step: float = COORD_STEP_DEG) -> dict[str, np.ndarray]:
+    """Vertices [N, 2] -> arrays that compress well: rounded to ``step``, each the difference from the
+    one before, split into low and high bytes of int16 (the rare larger jumps, between scenarios, kept
+    apart as int64)."""
+    grid = np.round(np.asarray(coords, float) / step).astype(np.int64)
+    delta = np.diff(grid, axis=0, prepend=np.zeros((1, 2), np.int64))
+    large = np.abs(delta).max(axis=1) > np.iinfo(np.int16).max if len(delta) else np.zeros(0, bool)
+    small = np.where(large[:, None], 0, delta).astype(np.int16).view(np.uint16)
+    return {"coord_step": np.array(step), "coord_low": (small & 0xFF).astype(np.uint8),
+            "coord_high": (small >> 8).astype(np.uint8), "coord_large_at": np.flatnonzero(large).astype(np.int64),
+            "coord_large": delta[large]}
+
+
+def unpack_coords(data) -> np.ndarray:
+    """The inverse of ``pack_coords`` (to within half a step)."""
+    delta = (data["coord_low"].astype(np.uint16) | (data["coord_high"].astype(np.uint16) << 8)).view(np.int16).astype(np.int64)
+    delta[data["coord_large_at"]] = data["coord_large"]
+    return np.cumsum(delta, axis=0) * float(data["coord_step"])
+
+
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """An ``.npz`` (readable by ``np.load``) with LZMA members: a third smaller than ``savez_compressed``."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_LZMA) as archive:
+        for name, array in arrays.items():
+            buffer = io.BytesIO()
+            np.lib.format.write_array(buffer, np.asarray(array), allow_pickle=False)
+            archive.writestr(f"{name}.npy", buffer.getvalue())
+
+
 def save_dataset(scenarios: list[Scenario], stem: Path = DEFAULT_STEM, generation: dict | None = None) -> tuple[Path, Path]:
     """Write ``<stem>.npz`` (geometry and forcing) and ``<stem>.json`` (parameters and seeds)."""
     stem = Path(stem)
@@ -113,20 +147,20 @@ def save_dataset(scenarios: list[Scenario], stem: Path = DEFAULT_STEM, generatio
     geoms = [g if isinstance(g, MultiPolygon) else MultiPolygon([g]) for s in scenarios for g in s.geometries]
     _, coords, offsets = shapely.to_ragged_array(geoms) if geoms else (None, np.empty((0, 2)), ())
     arrays = {
-        "coords": np.asarray(coords, np.float32),
+        **pack_coords(coords),
         "obs_scenario": np.concatenate([np.full(len(s), i, np.int32) for i, s in enumerate(scenarios)]),
         "obs_time_h": np.concatenate([np.asarray(s.times_h, np.float32) for s in scenarios]),
         "obs_forcing": np.vstack([np.asarray(s.forcing, np.float32) for s in scenarios]),
     }
     for k, off in enumerate(offsets):
-        arrays[f"offsets{k}"] = np.asarray(off, np.int32)
+        arrays[f"counts{k}"] = np.diff(np.asarray(off, np.int64)).astype(np.int32)
     if scenarios and scenarios[0].hourly_given is not None:
         arrays["hourly_scenario"] = np.concatenate([np.full(len(s.hourly_given), i, np.int32)
                                                     for i, s in enumerate(scenarios)])
         arrays["hourly_given"] = np.vstack([np.asarray(s.hourly_given, np.float32) for s in scenarios])
         arrays["hourly_true"] = np.vstack([np.asarray(s.hourly_true, np.float32) for s in scenarios])
     npz_path, json_path = stem.with_suffix(".npz"), stem.with_suffix(".json")
-    np.savez_compressed(npz_path, **arrays)
+    _write_npz(npz_path, arrays)
     meta = dict(generation or {})
     meta["forcing_columns"] = list(FORCING_COLUMNS)
     meta["scenarios"] = [{"scenario_id": s.scenario_id, "regime": s.regime, "seed": s.seed,
@@ -145,9 +179,12 @@ def load_dataset(stem: Path | str | None = None) -> list[Scenario]:
             raise FileNotFoundError(f"{path}: dataset file missing (run `oilspill-forecaster simulate`)")
     meta = json.loads(json_path.read_text())
     with np.load(npz_path) as data:
-        offsets = tuple(data[f"offsets{k}"] for k in range(3))
-        geoms = shapely.from_ragged_array(shapely.GeometryType.MULTIPOLYGON,
-                                          data["coords"].astype(float), offsets)
+        if "coords" in data:    # the first set's layout: float32 vertices, offsets
+            coords, offsets = data["coords"].astype(float), tuple(data[f"offsets{k}"] for k in range(3))
+        else:
+            coords = unpack_coords(data)
+            offsets = tuple(np.concatenate([[0], np.cumsum(data[f"counts{k}"], dtype=np.int64)]) for k in range(3))
+        geoms = shapely.from_ragged_array(shapely.GeometryType.MULTIPOLYGON, coords, offsets)
         obs_scenario, times_h, forcing = data["obs_scenario"], data["obs_time_h"], data["obs_forcing"]
         hourly = {k: data[k] for k in ("hourly_scenario", "hourly_given", "hourly_true") if k in data}
     scenarios = []

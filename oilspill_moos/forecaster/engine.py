@@ -14,7 +14,9 @@ Kinds (``KINDS``):
   drift correction, carried on over the horizon; its footprint is scaled to the observed area trend
   (``trend_area``, as constant-velocity-growth grows);
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
-  its drift (residual displacement), its spreading (area ratio) and the spread of its error.
+  its drift (residual displacement), its spreading (area ratio) and the spread of its error; the
+  footprint never grows past what the observed area trend supports (``trend_area``): no runaway growth
+  from sparse, unforced observations of a shrinking slick.
 
 Every kind forecasts at any horizon: the physics moves particles to any time; the learned correction,
 trained at ``features.HORIZONS_H``, is interpolated linearly in the horizon between them (from zero at
@@ -378,7 +380,7 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
     z = gaussian_members(settings.members)
     if kind in BASELINE_KINDS and not kind.startswith("physics"):
         geometries = [baseline_geometry(kind, obs, h) for h in horizons_s]
-        masks = None
+        masks = [None] * len(geometries)
         raw = np.broadcast_to(z, (len(horizons_s), *z.shape))
     else:
         moved, start = drift(obs.geometries[-1], 0.0, horizons_s, obs.track, settings.params)
@@ -394,7 +396,12 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         masks = [(d[0], d[1]) for d in drawn]
         if kind == "physics-corrected":     # spreading corrected too: scaled to the observed area trend
             geometries = [scaled_to(g, trend_area(obs, h)) for g, h in zip(geometries, horizons_s)]
-            masks = None
+            masks = [None] * len(geometries)
+        elif correction is not None:        # learned growth bounded by the observed area trend
+            for j, h in enumerate(horizons_s):
+                bound = trend_area(obs, h)
+                if geometries[j].area > bound:
+                    geometries[j], masks[j] = scaled_to(geometries[j], bound), None
     out = []
     for j, h in enumerate(horizons_h):
         offsets = raw[j] * scale[j]
@@ -402,7 +409,7 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         geometry = geometries[j]
         c50 = c90 = geometry
         if contours:
-            if masks is None:
+            if masks[j] is None:
                 grid = Grid.covering(np.array(geometry.bounds).reshape(2, 2), math.sqrt(geometry.area) / 24, 0.0)
                 mask = grid.rasterise(geometry)
             else:

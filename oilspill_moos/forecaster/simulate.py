@@ -48,6 +48,12 @@ TRAIN_METHODS = ("hdr-kde", "buffer-200", "buffer-400", "buffer-800")
 FOOTPRINT_METHODS = TRAIN_METHODS + (HELD_OUT_METHOD,)
 OIL_TYPES = ("GENERIC LIGHT CRUDE", "GENERIC MEDIUM CRUDE", "SOUTH LOUISIANA", "GENERIC HEAVY CRUDE")
 WIND_PATTERNS = ("constant", "veer", "shift")
+# Steady-forcing regimes (the paper's five plus plain steady drift): constant wind and mean current, no
+# inertial or tidal oscillation, no gusts (a slow veer at most). The plan's draws from ``VARYING_DRAWS``
+# on are all steady, cycled over these regimes and over the training regions only (``generation_plan``),
+# so the out-of-distribution test split keeps its construction and its scenarios.
+STEADY_REGIMES = ("steady", "initial_release", "steady_growth", "dispersal", "multi_lobe", "strong_forcing")
+VARYING_DRAWS = 192            # the first draws of the plan: time-varying forcing (the set as first made)
 HDR = {"mass_fraction": 0.9, "grid_cells": 80, "min_cell_m": 150.0, "smoothing_cells": 1.5}
 MIN_PART_FRACTION = 0.02       # footprint parts under this fraction of the largest are dropped
 SURFACE_DEPTH_M = 0.5
@@ -82,10 +88,15 @@ def release_point(rng: np.random.Generator, region: str, land=is_land) -> tuple[
     raise RuntimeError(f"no open-water release point found in region {region}")
 
 
-def scenario_params(region: str, seed: int, method: str | None = None, land=is_land) -> dict:
-    """Draw one scenario's parameters (deterministic in ``seed``); ``land`` is the land test."""
+def scenario_params(region: str, seed: int, method: str | None = None, land=is_land, regime: str = "varying") -> dict:
+    """Draw one scenario's parameters (deterministic in ``seed``); ``land`` is the land test.
+
+    ``regime`` "varying" is the time-varying draw; one of ``STEADY_REGIMES`` overrides it with steady
+    forcing and that regime's release and spreading (``steady_params``)."""
     if region not in REGIONS:
         raise ValueError(f"unknown region {region!r}; known: {', '.join(REGIONS)}")
+    if regime != "varying" and regime not in STEADY_REGIMES:
+        raise ValueError(f"unknown regime {regime!r}; known: varying, {', '.join(STEADY_REGIMES)}")
     rng = np.random.default_rng(seed)
     if method is None:
         method = HELD_OUT_METHOD if region in HELD_OUT_REGIONS else str(rng.choice(TRAIN_METHODS))
@@ -94,7 +105,7 @@ def scenario_params(region: str, seed: int, method: str | None = None, land=is_l
     continuous = bool(rng.random() < 0.5)
     release_h = round(float(rng.uniform(6, 30)), 1) if continuous else 0.0
     pattern = str(rng.choice(WIND_PATTERNS))
-    return {
+    params = {
         "region": region, "seed": seed, "method": method, "lon": lon, "lat": lat,
         "release_time": start.isoformat().replace("+00:00", "Z"), "duration_h": 44,
         "release": "continuous" if continuous else "instantaneous", "release_h": release_h,
@@ -111,6 +122,34 @@ def scenario_params(region: str, seed: int, method: str | None = None, land=is_l
         "inertial_amp": round(float(rng.uniform(0.0, 0.2)), 3), "inertial_phase": round(float(rng.uniform(0, 2 * math.pi)), 3),
         "tidal_amp": round(float(rng.uniform(0.0, 0.05)), 3), "tidal_phase": round(float(rng.uniform(0, 2 * math.pi)), 3),
         "diffusivity": round(float(rng.uniform(2.0, 50.0)), 1), "sea_temp_c": round(float(rng.uniform(22.0, 30.0)), 2),
+    }
+    return params if regime == "varying" else params | steady_params(regime, rng)
+
+
+def steady_params(regime: str, rng: np.random.Generator) -> dict:
+    """The steady-forcing overrides of one regime (drawn after the common draws, so from the same seed)."""
+    wind, current, diffusivity, release_h = {
+        "steady": ((1.0, 12.0), (0.02, 0.4), (2.0, 40.0), (0.0, 20.0)),
+        "initial_release": ((2.0, 8.0), (0.02, 0.2), (3.0, 20.0), (44.0, 44.0)),   # oil released all run long
+        "steady_growth": ((3.0, 8.0), (0.05, 0.25), (3.0, 20.0), (20.0, 44.0)),
+        "dispersal": ((7.0, 13.0), (0.05, 0.3), (30.0, 80.0), (1.0, 6.0)),
+        "multi_lobe": ((3.0, 9.0), (0.05, 0.25), (3.0, 15.0), (4.0, 12.0)),
+        "strong_forcing": ((10.0, 16.0), (0.3, 0.7), (10.0, 30.0), (10.0, 36.0)),
+    }[regime]
+    release_h = round(float(rng.uniform(*release_h)), 1)
+    veer = round(float(rng.uniform(-20, 20)), 1) if rng.random() < 0.3 else 0.0
+    lobes = int(rng.integers(2, 4)) if regime == "multi_lobe" else 1
+    bearings = rng.uniform(0, 360, lobes)
+    distances = rng.uniform(3.0, 12.0, lobes) * (np.arange(lobes) > 0)   # first lobe at the release point
+    return {
+        "regime": regime, "wind_pattern": "veer" if veer else "constant",
+        "wind_speed": round(float(rng.uniform(*wind)), 2), "wind_veer_deg": veer,
+        "wind_shift_h": None, "wind_shift_deg": 0.0, "wind_shift_speed": None, "wind_gust": 0.0,
+        "current_speed": round(float(rng.uniform(*current)), 3), "inertial_amp": 0.0, "tidal_amp": 0.0,
+        "diffusivity": round(float(rng.uniform(*diffusivity)), 1),
+        "release": "continuous" if release_h > 0 else "instantaneous", "release_h": release_h,
+        "vertical_mixing": regime == "dispersal",
+        "lobes_km": [[round(float(d), 2), round(float(b), 1)] for d, b in zip(distances, bearings)],
     }
 
 
@@ -270,9 +309,13 @@ def run_scenario(params: dict, particles: int = 1000) -> Scenario:
     model.set_config("environment:constant:horizontal_diffusivity", params["diffusivity"])
     model.set_config("drift:vertical_mixing", params["vertical_mixing"])
     window = [naive_release, naive_release + timedelta(hours=params["release_h"])]
-    model.seed_elements(lon=params["lon"], lat=params["lat"], z=0.0, radius=params["release_radius_m"],
-                        number=particles, time=window if params["release_h"] > 0 else naive_release,
-                        oil_type=params["oil_type"])
+    lobes = params.get("lobes_km", [[0.0, 0.0]])     # (distance km, bearing deg) of each release point
+    for k, (distance_km, bearing) in enumerate(lobes):
+        east, north = _towards(1000.0 * distance_km, bearing)
+        lon, lat = local_frame(params["lon"], params["lat"])[1](np.array([east]), np.array([north]))
+        model.seed_elements(lon=float(lon[0]), lat=float(lat[0]), z=0.0, radius=params["release_radius_m"],
+                            number=particles // len(lobes) + (k < particles % len(lobes)),
+                            time=window if params["release_h"] > 0 else naive_release, oil_type=params["oil_type"])
     model.run(duration=timedelta(hours=params["duration_h"]), time_step=3600, time_step_output=3600)
     result = model.result
     lon, lat = result.lon.values, result.lat.values  # [particle, time]
@@ -292,15 +335,26 @@ def run_scenario(params: dict, particles: int = 1000) -> Scenario:
         geometries.append(shapely.transform(polygon, lambda xy: np.column_stack(to_lonlat(xy[:, 0], xy[:, 1]))))
     given = given_forcing(true, params["seed"])
     rows = given[np.asarray(times_h, int)] if times_h else np.empty((0, 5))
-    return Scenario(scenario_id=f"{params['region']}-{params['seed']}", regime=params["release"],
+    return Scenario(scenario_id=f"{params['region']}-{params['seed']}", regime=params.get("regime", params["release"]),
                     seed=params["seed"], release_time=release, params=params, times_h=np.asarray(times_h),
                     geometries=geometries, forcing=rows, hourly_given=given, hourly_true=true)
 
 
-def generation_plan(count: int, base_seed: int) -> list[dict]:
-    """``count`` parameter sets, regions in round-robin order so any prefix covers every region."""
+def generation_plan(count: int, base_seed: int, land=is_land) -> list[dict]:
+    """``count`` parameter sets: the first ``VARYING_DRAWS`` time-varying, regions in round-robin order
+    so any prefix covers every region; after them steady regimes (``STEADY_REGIMES`` in turn) released
+    in the training regions in turn, so the held-out regions keep only their time-varying scenarios."""
     names = list(REGIONS)
-    return [scenario_params(names[i % len(names)], base_seed + i) for i in range(count)]
+    training = [r for r in REGIONS if r not in HELD_OUT_REGIONS]
+    plan = []
+    for i in range(count):
+        if i < VARYING_DRAWS:
+            plan.append(scenario_params(names[i % len(names)], base_seed + i, land=land))
+        else:
+            j = i - VARYING_DRAWS
+            plan.append(scenario_params(training[j % len(training)], base_seed + i, land=land,
+                                        regime=STEADY_REGIMES[j % len(STEADY_REGIMES)]))
+    return plan
 
 
 def _run(job):

@@ -200,3 +200,18 @@ def test_learned_correction_at_any_horizon():
     out = E.forecast_plane("ltc-fused", obs, (1, 5.5, 15, 24), E.Settings(), corrector.correction(obs, E.DriftParameters()))
     assert [f.horizon_h for f in out] == [1, 5.5, 15, 24]
     assert all(f.geometry.area > 0 and f.geometry.is_valid and f.uncertainty_m > 0 for f in out)
+
+
+def test_learned_growth_never_outruns_a_shrinking_slick():
+    """DWH-like input: two sparse, unforced observations a day apart of a slick shrinking from 26 to
+    20 km across; a learned correction that asks for the area to quadruple still forecasts no growth
+    (at most the observed trend's area), and a real random LTC's forecast never exceeds the latest area."""
+    geoms = [Point(0, 0).buffer(radius, quad_segs=64) for radius in (13_000.0, 10_000.0)]
+    obs = planar_observations(geoms, np.array([0.0, 48.0]), np.zeros((2, 4)))
+    latest = obs.shapes[-1].area
+    greedy = E.Correction(np.zeros((4, 2)), np.full(4, math.log(4.0)), np.full((4, 2), 100.0))
+    corrector = random_corrector(3)
+    for correction in (greedy, corrector.correction(obs, E.DriftParameters())):
+        for f in E.forecast_plane("ltc-fused", obs, F.HORIZONS_H, E.Settings(), correction, contours=False):
+            assert f.geometry.area <= E.trend_area(obs, 3600.0 * f.horizon_h) * (1 + 1e-6)
+            assert f.geometry.area < latest

@@ -5,8 +5,9 @@ import shapely
 from shapely.geometry import MultiPolygon
 
 from oilspill_moos.forecaster.dataset import HELD_OUT_METHOD, HELD_OUT_REGIONS
-from oilspill_moos.forecaster.simulate import (FOOTPRINT_METHODS, REGIONS, TRAIN_METHODS, footprint, forcing_series,
-                                               given_forcing, main, particles_to_polygon, scenario_params)
+from oilspill_moos.forecaster.simulate import (FOOTPRINT_METHODS, REGIONS, STEADY_REGIMES, TRAIN_METHODS, VARYING_DRAWS,
+                                               footprint, forcing_series, generation_plan, given_forcing, main,
+                                               particles_to_polygon, scenario_params)
 
 
 def open_sea(lons, lats):
@@ -22,6 +23,31 @@ def test_parameters_are_deterministic_per_seed_and_the_split_is_by_construction(
         assert scenario_params(region, 3, land=open_sea)["method"] == HELD_OUT_METHOD
     with pytest.raises(ValueError, match="unknown region"):
         scenario_params("atlantis", 1, land=open_sea)
+
+
+def test_steady_regimes_have_constant_forcing_and_stay_out_of_the_held_out_regions():
+    plan = generation_plan(VARYING_DRAWS + 2 * len(STEADY_REGIMES), 20260, land=open_sea)
+    assert all(p.get("regime", "varying") == "varying" for p in plan[:VARYING_DRAWS])
+    steady = plan[VARYING_DRAWS:]
+    assert [p["regime"] for p in steady] == 2 * list(STEADY_REGIMES)
+    assert all(p["region"] not in HELD_OUT_REGIONS and p["method"] in TRAIN_METHODS for p in steady)
+    for p in steady:
+        f = forcing_series(p)
+        assert p["inertial_amp"] == p["tidal_amp"] == p["wind_gust"] == 0.0 and p["wind_shift_h"] is None
+        assert np.allclose(f[:, 2:4], f[0, 2:4])                          # a steady current
+        assert np.allclose(np.hypot(f[:, 0], f[:, 1]), p["wind_speed"])   # steady wind speed (a slow veer at most)
+        if p["wind_pattern"] == "constant":
+            assert np.allclose(f[:, :2], f[0, :2])
+        assert abs(p["wind_veer_deg"]) <= 20.0
+        lobes = p["lobes_km"]
+        assert (2 <= len(lobes) <= 3) if p["regime"] == "multi_lobe" else len(lobes) == 1
+        assert lobes[0][0] == 0.0 and all(3.0 <= d <= 12.0 for d, _ in lobes[1:])
+    strong = [p for p in steady if p["regime"] == "strong_forcing"]
+    assert all(p["wind_speed"] >= 10.0 and p["current_speed"] >= 0.3 for p in strong)
+    assert all(p["release_h"] == 44.0 for p in steady if p["regime"] == "initial_release")
+    assert all(p["vertical_mixing"] and p["diffusivity"] >= 30.0 for p in steady if p["regime"] == "dispersal")
+    with pytest.raises(ValueError, match="unknown regime"):
+        scenario_params("central", 1, land=open_sea, regime="tsunami")
 
 
 def test_release_points_avoid_land():
