@@ -150,3 +150,18 @@ def test_quoted_fields_keep_their_commas():
         ["id=avd", "val=name=$[VNAME] # contact=$[VNAME]"]
     with pytest.raises(FormatError, match="unclosed double quote"):
         split_fields('a="open,b=2')
+
+
+@given(st.text(alphabet='ab=,:}{" ', max_size=30))
+def test_split_fields_cuts_only_outside_braces_and_quotes(text):
+    """Joined again the fields are the text; each holds its braces and quotes whole; text with neither
+    is cut at every separator (the short way most mail takes)."""
+    try:
+        fields = split_fields(text)
+    except FormatError:
+        assert text.count('"') % 2 == 1
+        return
+    assert ",".join(fields) == text
+    assert all(f.count('"') % 2 == 0 for f in fields)
+    if '"' not in text and "{" not in text:
+        assert fields == text.split(",")
