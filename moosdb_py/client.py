@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 from . import codec
 from .message import (ASYNC_TIMING_KEY, DATA, NULL_MSG, POISON, REGISTER, SERVER_REQUEST, SERVER_REQUEST_ID,
-                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg, moos_time)
+                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg)
 
 log = logging.getLogger("moosdb_py.client")
 
@@ -73,7 +73,7 @@ class MOOSClient:
         self._closed_event: asyncio.Event | None = None
 
     def moos_time(self) -> float:
-        return moos_time(self.time_warp)
+        return _time.time() * self.time_warp     # message.moos_time, without a call more (apps ask each AppTick)
 
     # -- life cycle ----------------------------------------------------------------------------
     async def run(self) -> None:
@@ -333,7 +333,7 @@ class MOOSClient:
 
     def notify(self, key: str, value: float | str | bytes, time: float | None = None, source_aux: str = "") -> None:
         self.published.add(key)
-        self.post(MOOSMsg.notification(key, value, time=_time.time() * self.time_warp if time is None else time,
+        self.post(MOOSMsg.notification(key, value, time=self.moos_time() if time is None else time,
                                         source_aux=source_aux))
 
     def server_request(self, request: str) -> None:
