@@ -220,6 +220,7 @@ def test_apps_sharing_a_loop_keep_their_rates_and_wake_together(monkeypatch):
             a.stop()
         await asyncio.wait_for(asyncio.gather(*tasks), 5)
         db.close()
-        assert abs(done[0] - 100 * elapsed) <= 3 and abs(done[1] - 80 * elapsed) <= 3
+        # periods passed (iterated or missed) per second; a loaded machine may owe a few at either reading
+        assert 85 <= done[0] / elapsed <= 108 and 68 <= done[1] / elapsed <= 86
         assert len(wakes) - woken <= 0.62 * sum(done)
     asyncio.run(scenario())
