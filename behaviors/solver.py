@@ -12,7 +12,8 @@ def _scale(f: IvPFunction) -> tuple[float, float]:
     most 100, then weighted by pwt. A separable function's range comes from its parts (the min of a sum
     of independent parts is the sum of their mins)."""
     if f.parts is not None:
-        lo, hi = sum(float(p.min()) for p in f.parts), sum(float(p.max()) for p in f.parts)
+        bounds = f.part_bounds()
+        lo, hi = sum(b[0] for b in bounds), sum(b[1] for b in bounds)
     else:
         lo, hi = float(f.values.min()), float(f.values.max())
     return (lo, 100.0 / (hi - lo) * f.pwt) if hi - lo > 100.0 else (0.0, f.pwt)
