@@ -41,13 +41,18 @@ class IvPFunction:
     def part_bounds(self) -> tuple[tuple[float, float], ...]:
         """(min, max) of each part (np.min/np.max: NaN when the part holds a NaN)."""
         if self.bounds is None:
-            self.bounds = tuple((float(p.min()), float(p.max())) for p in self.parts)
+            self.bounds = tuple(_range(p) for p in self.parts)
         return self.bounds
 
     def has_nan(self) -> bool:
         if self.parts is not None:
             return any(math.isnan(lo) for lo, _ in self.part_bounds())
         return bool(np.isnan(self.values).any())
+
+
+def _range(values: np.ndarray) -> tuple[float, float]:
+    """(min, max), NaN when values hold one: ndarray.min/max without their Python-level wrappers."""
+    return float(np.minimum.reduce(values, axis=None)), float(np.maximum.reduce(values, axis=None))
 
 
 def _shift_scale(values: np.ndarray, lo: float, hi: float, k: float) -> tuple[np.ndarray, float, float]:
@@ -58,12 +63,12 @@ def _shift_scale(values: np.ndarray, lo: float, hi: float, k: float) -> tuple[np
     out = (values - lo) * k
     if k >= 0 and math.isfinite(k) and math.isfinite(hi - lo):
         return out, (lo - lo) * k, (hi - lo) * k
-    return out, float(out.min()), float(out.max())
+    return (out, *_range(out))
 
 
 def _rescale(values: np.ndarray, top: float) -> tuple[np.ndarray, float, float]:
     """values brought to 0..top, with the result's (min, max); a flat array is left as it is."""
-    lo, hi = float(values.min()), float(values.max())
+    lo, hi = _range(values)
     if hi == lo:
         return values, lo, hi
     return _shift_scale(values, lo, hi, top / (hi - lo))

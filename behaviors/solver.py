@@ -35,7 +35,7 @@ def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
             k = _scale(f)[1]
             for name, part in zip(f.vars, f.parts):
                 totals[name] = part * k if name not in totals else totals[name] + part * k
-        index = [int(np.argmax(totals[n])) for n in names]
+        index = [int(totals[n].argmax()) for n in names]
     else:
         shape = tuple(domain.var(n).npts for n in names)
         total = np.zeros(shape)
@@ -47,7 +47,7 @@ def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
             for ax in sorted(axes):
                 full_shape[ax] = shape[ax]
             total += arr.reshape(full_shape)
-        index = np.unravel_index(int(np.argmax(total)), shape)
+        index = np.unravel_index(int(total.argmax()), shape)
     return {n: round(float(domain.var(n).values[i]), 9) for n, i in zip(names, index)}
 
 
