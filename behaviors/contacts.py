@@ -15,6 +15,7 @@ import numpy as np
 
 from moosdb_py.formats import FormatError, parse_number, parse_pairs
 
+from .geometry import are_floats
 from .logic import as_number
 
 # NODE_REPORT field -> info-buffer suffix; keys are matched without regard to case.
@@ -141,7 +142,11 @@ def extrapolate(x: float, y: float, speed: float, heading: float, age: float, de
 
 
 def velocity(heading, speed):
-    """(vx, vy) of a marine heading (degrees, 0 = north, 90 = east) and a speed; numpy-friendly."""
+    """(vx, vy) of a marine heading (degrees, 0 = north, 90 = east) and a speed; numpy-friendly,
+    plain math for two floats (the closing speed asks for single ones every iteration)."""
+    if are_floats(heading, speed):
+        a = math.radians(heading)
+        return speed * math.sin(a), speed * math.cos(a)
     a = np.radians(heading)
     return np.multiply(speed, np.sin(a)), np.multiply(speed, np.cos(a))
 
