@@ -191,15 +191,26 @@ def closing_speed(osx: float, osy: float, osh: float, osv: float, cnx: float, cn
     rng = math.hypot(rx, ry)
     if rng == 0:
         return 0.0
-    ovx, ovy = velocity(osh, osv)
-    cvx, cvy = velocity(cnh, cnv)
-    return float(-(rx * (ovx - cvx) + ry * (ovy - cvy)) / rng)
+    vx, vy = _relative_velocity(osh, osv, cnh, cnv)
+    return -(rx * vx + ry * vy) / rng
+
+
+def _relative_velocity(osh: float, osv: float, cnh: float, cnv: float) -> tuple[float, float]:
+    """Ownship's velocity minus the contact's, for one heading and speed each: plain floats, as numpy
+    on scalars costs ten times more (the contact manager asks this of every contact every iteration)."""
+    a, b = math.radians(osh), math.radians(cnh)
+    return osv * math.sin(a) - cnv * math.sin(b), osv * math.cos(a) - cnv * math.cos(b)
 
 
 def cpa_range(osx: float, osy: float, osh: float, osv: float,
               cnx: float, cny: float, cnh: float, cnv: float, horizon: float) -> float:
-    """Closest distance between ownship and contact over the next `horizon` s, both holding course and speed."""
-    return float(cpa_distance(osx, osy, osh, osv, cnx, cny, cnh, cnv, horizon))
+    """Closest distance between ownship and contact over the next `horizon` s, both holding course and
+    speed: `cpa_distance` for one heading and speed, in plain floats."""
+    rx, ry = osx - cnx, osy - cny
+    vx, vy = _relative_velocity(osh, osv, cnh, cnv)
+    vv = vx * vx + vy * vy
+    t = min(max(-(vx * rx + vy * ry) / vv, 0.0), horizon) if vv > 1e-12 else 0.0
+    return math.hypot(rx + vx * t, ry + vy * t)
 
 
 def relative_bearing(osx: float, osy: float, osh: float, cnx: float, cny: float) -> float:

@@ -48,6 +48,9 @@ class MOOSApp:
     example_config = ""
     interface = ""
     parameters: Params | None = None   # the app's ProcessConfig parameters; None: the app reads its block itself
+    # Posts <NAME>_ITER_GAP and <NAME>_ITER_LEN every iteration, as MOOS-IvP's AppCastingMOOSApp does (what
+    # uLoadWatch reads); core-MOOS apps (pLogger, pShare) and pymoos scripts do not.
+    posts_iteration_load = True
 
     def __init__(self, mission_file: str | Path | None = None, name: str | None = None, *,
                  host: str | None = None, port: int | None = None, time_warp: float | None = None):
@@ -60,6 +63,8 @@ class MOOSApp:
         self.app_tick = self._positive("AppTick", DEFAULT_APP_TICK)
         self.comms_tick = self._positive("CommsTick", DEFAULT_COMMS_TICK)   # read as MOOS does; async comms ignore it
         self.command_key = f"{self.name.upper()}_CMD"
+        self._iter_gap_key, self._iter_len_key = f"{self.name.upper()}_ITER_GAP", f"{self.name.upper()}_ITER_LEN"
+        self._last_iterate: float | None = None   # MOOS time of the previous iteration
         self.client = MOOSClient(self.name, "127.0.0.1" if host == "localhost" else host, port,
                                  on_mail=self._on_mail, on_connect=self._on_connect, time_warp=self.time_warp)
         self.start_time = self.moos_time()
@@ -206,7 +211,10 @@ class MOOSApp:
             mail, self._mail = self._mail, []
             if mail:
                 self.on_new_mail(mail)
-            self.iterate()
+            if self.posts_iteration_load:
+                self._iterate_with_load()
+            else:
+                self.iterate()
             self.iterations += 1
             now = _time.monotonic()
             if now >= self._next_status:
@@ -226,6 +234,17 @@ class MOOSApp:
                 self._ticking.set_exception(exc)
         finally:
             self.client.send_held()
+
+    def _iterate_with_load(self) -> None:
+        """`iterate`, with its gap since the last one and its length, both over the AppTick period (1.0:
+        a whole period) in MOOS time, posted as <NAME>_ITER_GAP (from the second iteration) and _ITER_LEN."""
+        start = self.moos_time()
+        if self._last_iterate is not None:
+            self.notify(self._iter_gap_key, (start - self._last_iterate) * self.app_tick, start)
+        self._last_iterate = start
+        self.iterate()
+        now = self.moos_time()
+        self.notify(self._iter_len_key, (now - start) * self.app_tick, now)
 
     def stop(self) -> None:
         self._stopping = True

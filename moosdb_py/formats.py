@@ -97,6 +97,8 @@ def format_bool(value: bool) -> str:
 def split_fields(text: str, sep: str = ",") -> list[str]:
     """`text` split at `sep` outside braces and double quotes (MOOS's parseStringQ), quotes kept:
     `a=1,pts={1,2:3,4},s="x,y"` -> ['a=1', 'pts={1,2:3,4}', 's="x,y"']; an unclosed quote is an error."""
+    if '"' not in text and "{" not in text:   # nothing to protect (every NODE_REPORT): a plain split
+        return text.split(sep)
     fields, depth, quoted, start = [], 0, False, 0
     for i, char in enumerate(text):
         if char == '"':

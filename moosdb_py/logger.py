@@ -189,6 +189,7 @@ class Logger(MOOSApp):
     """
 
     default_name = "pLogger"
+    posts_iteration_load = False   # a core-MOOS app: no ITER_GAP / ITER_LEN
     parameters = LOGGER_PARAMS
     alog: AlogWriter | None = None     # files are opened in on_startup
     xlog: AlogWriter | None = None

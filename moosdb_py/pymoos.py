@@ -421,6 +421,8 @@ class _StartUpFailed(Exception):
 class _ScriptApp(MOOSApp):
     """The MOOSApp life cycle calling a pymoos `app`'s callbacks."""
 
+    posts_iteration_load = False   # python-moos apps post no ITER_GAP / ITER_LEN
+
     def __init__(self, owner: app, mission_file: str, name: str, host: str, port: int):
         super().__init__(mission_file or None, name, host=host, port=port, time_warp=_warp)
         self.owner = owner

@@ -339,6 +339,7 @@ class Share(MOOSApp):
     """
 
     default_name = "pShare"
+    posts_iteration_load = False   # a core-MOOS app: no ITER_GAP / ITER_LEN
     parameters = SHARE_PARAMS
     example_config = """\
 ProcessConfig = pShare

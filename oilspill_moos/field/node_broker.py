@@ -9,6 +9,7 @@ posts out, so the handshake can be tested without sockets.
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import dataclass, field, replace
 
 from moosdb_py.config import Param, Params
@@ -215,6 +216,7 @@ PUBLICATIONS:
                         cmd=output,src_name=<src>,dest_name=<alias>,route=<shore>
   NODE_BROKER_PING_<i>  <host record>,time=<utc>,key=<i>  every 20 s (5 s while unanswered)
   NODE_PSHARE_VARS      comma list of the bridged aliases
+  UFLDNODEBROKER_PID    the process id, once at start-up (what uMemWatch measures)
 """
     parameters = Params(
         Param("try_shore_host", list, [], "`pshare_route=host:port` where a shoreside pShare listens (repeatable)"),
@@ -240,6 +242,7 @@ PUBLICATIONS:
         if not self.state.shores:
             log.warning("%s: no try_shore_host; waiting for TRY_SHORE_HOST mail", self.name)
         self.report_warnings()
+        self.notify("UFLDNODEBROKER_PID", float(os.getpid()))   # as MOOS-IvP's, for uMemWatch (sent on connecting)
 
     def on_ack(self, msg: MOOSMsg) -> list[Post]:
         return self.state.on_ack(msg.string, msg.community, self.moos_time())

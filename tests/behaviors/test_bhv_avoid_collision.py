@@ -6,10 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from behaviors.behavior import InfoBuffer
 from behaviors.bhv_avoid_collision import BHV_AvoidCollision
-from behaviors.contacts import closing_speed, cpa_distance, extrapolate, node_report_values
+from behaviors.contacts import closing_speed, cpa_distance, cpa_range, extrapolate, node_report_values
 from moosdb_py.geodesy import LocalGrid
 from behaviors.helm import Helm
 from helm_sim import AVOID_MISSION as TEMPLATE
@@ -37,6 +39,16 @@ def test_closing_speed():
     assert closing_speed(0, 0, 0, 2, 0, 100, 180, 2) == pytest.approx(4)       # head-on
     assert closing_speed(0, 0, 180, 2, 0, 100, 180, 2) == pytest.approx(0)     # same velocity
     assert closing_speed(0, 0, 180, 1, 0, 100, 0, 1) == pytest.approx(-2)      # opening
+
+
+coordinate, heading, speed = st.floats(-2000, 2000), st.floats(0, 360), st.floats(0, 6)
+
+
+@given(coordinate, coordinate, heading, speed, coordinate, coordinate, heading, speed, st.floats(0, 600))
+def test_scalar_cpa_range_is_the_array_cpa(osx, osy, osh, osv, cnx, cny, cnh, cnv, horizon):
+    """The contact manager's plain-float CPA agrees with the helm's array CPA for the same one course."""
+    expected = float(cpa_distance(osx, osy, osh, osv, cnx, cny, cnh, cnv, horizon))
+    assert cpa_range(osx, osy, osh, osv, cnx, cny, cnh, cnv, horizon) == pytest.approx(expected, rel=1e-9, abs=1e-6)
 
 
 @pytest.mark.parametrize("age, expected_x", [

@@ -39,7 +39,7 @@ def warnings_about(log: Path, app: str) -> list[str]:
 
 
 def test_unknown_app_mid_mission_is_named_once_and_the_rest_runs(tmp_path, free_port):
-    """A corpus-like ANTLER block with uMemWatch (not a project app) between two apps we have (hosted
+    """A corpus-like ANTLER block with iM300 (a hardware driver, not a project app) between two apps we have (hosted
     in-process, as `--one-process`)."""
     port = free_port()
     mission = tmp_path / "meta.moos"
@@ -47,7 +47,7 @@ def test_unknown_app_mid_mission_is_named_once_and_the_rest_runs(tmp_path, free_
         f"ServerHost = localhost\nServerPort = {port}\nCommunity = alpha\nMOOSTimeWarp = {WARP}\n\n"
         "ProcessConfig = ANTLER\n{\n  MSBetweenLaunches = 100\n\n"
         "  Run = MOOSDB         @ NewConsole = false\n"
-        "  Run = uMemWatch      @ NewConsole = false\n"
+        "  Run = iM300          @ NewConsole = false\n"
         "  Run = uTimerScript   @ NewConsole = false\n}\n\n"
         "ProcessConfig = uTimerScript\n{\n  AppTick = 4\n  event = var=TIMER_UP, val=$(COUNT), time=1\n}\n")
 
@@ -58,8 +58,8 @@ def test_unknown_app_mid_mission_is_named_once_and_the_rest_runs(tmp_path, free_
     asyncio.run(scenario())
 
     log = tmp_path / "antler.log"
-    warnings = warnings_about(log, "uMemWatch")
-    assert warnings == ["pAntler: meta.moos:11: cannot launch uMemWatch: not a project app and not found on PATH"], \
+    warnings = warnings_about(log, "iM300")
+    assert warnings == ["pAntler: meta.moos:11: cannot launch iM300: not a project app and not found on PATH"], \
         log.read_text()
     assert not left_running(tmp_path)
 

@@ -62,6 +62,8 @@ def test_app_life_cycle_under_time_warp(moosdb_server, tmp_path):
         watcher = MOOSClient("watcher", port=moosdb_server.port, time_warp=10)
         watcher.register("COUNT")
         watcher.register("COUNTER2_STATUS")
+        watcher.register("COUNTER2_ITER_GAP")
+        watcher.register("COUNTER2_ITER_LEN")
         running = asyncio.create_task(app.run_async())
         watching = asyncio.create_task(watcher.run())
         await watcher.wait_connected(5)
@@ -78,6 +80,11 @@ def test_app_life_cycle_under_time_warp(moosdb_server, tmp_path):
         assert 'Subscribing="COUNTER2_CMD,COUNTER_RESET,"' in status and ",count=" in status
         count = [m for m in watcher.inbox if m.key == "COUNT"][-1]
         assert count.source == "counter2" and abs(count.time - time.time() * 10) < 5   # stamped with warped time
+        # each iteration's gap and length in AppTick periods (uLoadWatch's input): on time, gap 1
+        gaps = sorted(m.double for m in watcher.inbox if m.key == "COUNTER2_ITER_GAP")
+        lengths = [m.double for m in watcher.inbox if m.key == "COUNTER2_ITER_LEN"]
+        assert len(gaps) >= 5 and 0.5 < gaps[len(gaps) // 2] < 1.5
+        assert lengths and all(0 <= x < 1 for x in lengths)
         app.stop()
         watcher.close()
         await asyncio.wait_for(asyncio.gather(running, watching), 5)

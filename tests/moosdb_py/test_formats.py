@@ -150,3 +150,17 @@ def test_quoted_fields_keep_their_commas():
         ["id=avd", "val=name=$[VNAME] # contact=$[VNAME]"]
     with pytest.raises(FormatError, match="unclosed double quote"):
         split_fields('a="open,b=2')
+
+
+@given(st.lists(st.sampled_from(["a", "=", "1", ",", "{", "}", " ", '"', ":"]), max_size=30).map("".join),
+       st.text(alphabet="ab1,:= ", max_size=12))
+def test_fields_rejoin_and_braces_or_quotes_keep_commas(text, inner):
+    """Whatever the path (a plain split when nothing is quoted or braced), the fields rejoin to the
+    text; a braced or quoted value is one field however many commas it holds."""
+    try:
+        assert ",".join(split_fields(text)) == text
+    except FormatError:
+        assert text.count('"') % 2 == 1
+    if '"' not in text and "{" not in text:
+        assert split_fields(text) == text.split(",")
+    assert split_fields(f"a=1,pts={{{inner}}},s=\"{inner}\"") == ["a=1", f"pts={{{inner}}}", f's="{inner}"']

@@ -3,6 +3,7 @@ node broker that takes its host record from pHostInfo."""
 from __future__ import annotations
 
 import asyncio
+import os
 
 import pytest
 from helpers import async_wait_until, start_moosdb
@@ -99,7 +100,7 @@ def test_host_info_and_process_watch_against_a_moosdb(abe_db, tmp_path, free_por
     share = Share(path)
     watcher = MOOSClient("watch", port=abe_db.port, time_warp=WARP)
     keys = ["PHI_HOST_INFO", "PHI_HOST_IP", "PHI_HOST_PORT_DB", "PROC_WATCH_SUMMARY", "PROC_WATCH_EVENT",
-            "UPW_FULL", "PROC_WATCH_TIME_WARP", "NODE_BROKER_PING_0"]
+            "UPW_FULL", "PROC_WATCH_TIME_WARP", "NODE_BROKER_PING_0", "UFLDNODEBROKER_PID"]
     for key in keys:
         watcher.register(key)
 
@@ -117,6 +118,7 @@ def test_host_info_and_process_watch_against_a_moosdb(abe_db, tmp_path, free_por
             assert values("PHI_HOST_IP")[-1] == "10.9.8.7" and values("PHI_HOST_PORT_DB")[-1] == str(abe_db.port)
             await async_wait_until(lambda: "All Present" in values("PROC_WATCH_SUMMARY"), timeout=15)
             assert values("PROC_WATCH_TIME_WARP") == [float(WARP)]
+            assert values("UFLDNODEBROKER_PID") == [float(os.getpid())]   # what uMemWatch measures
             share.stop()                                       # pShare goes away: noticed from DB_CLIENTS
             await async_wait_until(lambda: "AWOL: pShare" in values("PROC_WATCH_SUMMARY"), timeout=15)
             assert "Process [pShare] is noted to be missing." in values("PROC_WATCH_EVENT")
