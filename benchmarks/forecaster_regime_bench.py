@@ -7,7 +7,7 @@ Deepwater Horizon wellhead, the paper's five regimes (initial release, steady gr
 multi-lobe, strong forcing), HDR-KDE footprints, constant forcing per observation and no forcing over
 the horizon (the forecaster holds the last). Each case is `Forecaster(kind).forecast()` on up to 16
 hourly observations, scored against the true footprint 3/7/11/15 h on. It prints, per kind, the mean
-IoU over scenarios with a bootstrap 95 % CI, ltc-fused minus every other kind (paired CI), the mean
+IoU and centroid error over scenarios with a bootstrap 95 % CI, ltc-fused minus every other kind (paired CI), the mean
 log area ratio forecast/truth (how much each kind over- or under-grows the slick) and the 15 h IoU per
 regime. Asserts nothing; the figures are in docs/forecaster.md.
 """
@@ -26,7 +26,8 @@ from oilspill_moos.forecaster.evaluate import bootstrap_ci, paired_ci
 from oilspill_moos.forecaster.operational import Forecaster
 
 HORIZONS_H = (3, 7, 11, 15)
-DEFAULT_KINDS = ("ltc-fused", "lstm", "persistence", "constant-velocity-growth", "physics-corrected")
+DEFAULT_KINDS = ("ltc-fused", "ltc-rk4", "ltc-euler", "lstm", "persistence", "constant-velocity",
+                 "constant-velocity-growth", "physics", "physics-corrected")
 
 
 def to_plane(geometry, lon0: float, lat0: float):
@@ -37,7 +38,7 @@ def to_plane(geometry, lon0: float, lat0: float):
 
 
 def score_scenario(scenario, forecasters: dict, every: int) -> dict:
-    """kind -> [cases, horizons, (IoU, log area ratio)] for the anchors of one scenario."""
+    """kind -> [cases, horizons, (IoU, log area ratio, centroid error km)] for the anchors of one scenario."""
     hours = np.asarray(scenario.times_h, float)
     times, environments = scenario.times(), scenario.environments()
     origin = scenario.geometries[0].centroid
@@ -58,7 +59,8 @@ def score_scenario(scenario, forecasters: dict, every: int) -> dict:
                 true, guess = truth[round(forecast.horizon_h)], to_plane(forecast.geometry, origin.x, origin.y)
                 union = guess.union(true).area
                 row.append((guess.intersection(true).area / union if union > 0 else 0.0,
-                            math.log(max(guess.area, 1.0) / max(true.area, 1.0))))
+                            math.log(max(guess.area, 1.0) / max(true.area, 1.0)),
+                            guess.centroid.distance(true.centroid) / 1e3))
             out[kind].append(row)
     return out
 
@@ -79,7 +81,7 @@ def main(argv=None) -> None:
                 per_case[kind][scenario.scenario_id] = np.asarray(rows)
         print(f"\r{number}/{len(scenarios)} scenarios", end="", flush=True)
     ids = sorted(per_case[kinds[0]])
-    means = {kind: np.array([per_case[kind][i].mean(axis=0) for i in ids]) for kind in kinds}   # [S, H, 2]
+    means = {kind: np.array([per_case[kind][i].mean(axis=0) for i in ids]) for kind in kinds}   # [S, H, 3]
     cases = sum(len(per_case[kinds[0]][i]) for i in ids)
     print(f"\n{len(ids)} scenarios, {cases} cases per horizon; IoU at {' / '.join(map(str, HORIZONS_H))} h, "
           "mean over scenarios [bootstrap 95 % CI]")
@@ -90,6 +92,10 @@ def main(argv=None) -> None:
     for kind in kinds[1:]:
         cells = (paired_ci(means[kinds[0]][:, h, 0], means[kind][:, h, 0]) for h in range(len(HORIZONS_H)))
         print(f"  {kind:26s}", "  ".join(f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]" for m, lo, hi in cells))
+    print("centroid error (km), mean over scenarios [bootstrap 95 % CI]")
+    for kind in kinds:
+        cells = (bootstrap_ci(means[kind][:, h, 2]) for h in range(len(HORIZONS_H)))
+        print(f"  {kind:26s}", "  ".join(f"{m:.2f} [{lo:.2f}, {hi:.2f}]" for m, lo, hi in cells))
     print("mean log area ratio forecast/truth (0 = right size, +0.69 = twice the area)")
     for kind in kinds:
         print(f"  {kind:26s}", " / ".join(f"{means[kind][:, h, 1].mean():+.2f}" for h in range(len(HORIZONS_H))))

@@ -11,7 +11,8 @@ Kinds (``KINDS``):
   spread by diffusion, with the published default parameters;
 - ``physics-corrected``: the prior with the forcing error estimated from the observed history
   (``forcing_error``): the observed centroids' motion against the forcing-predicted motion gives a
-  drift correction, carried on over the horizon;
+  drift correction, carried on over the horizon; its footprint is scaled to the observed area trend
+  (``trend_area``, as constant-velocity-growth grows);
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
   its drift (residual displacement), its spreading (area ratio) and the spread of its error.
 
@@ -42,11 +43,18 @@ from .kinds import BASELINE_KINDS
 from .physics import DriftParameters, ForcingTrack, Grid, ParticleFootprint, displacement, drift, drift_velocity, probability
 
 TREND_H = 6.0                  # constant-velocity fits the observations of the last 6 h
-# The forcing-error estimate (``forcing_error``): observations weigh exp(-age / DRIFT_MEMORY_H), and a
-# ridge of DRIFT_SHRINK_H hours of lever arm pulls a short or noisy history's estimate towards zero.
-# Both chosen on the training split's centroid errors (docs/forecaster.md).
-DRIFT_MEMORY_H = 3.0
-DRIFT_SHRINK_H = 1.0
+# The forcing-error estimate (``forcing_error``): observations weigh exp(-age / DRIFT_MEMORY_H); the
+# error is a weighted least-squares velocity with a Gaussian prior of DRIFT_PRIOR_MS (m/s, 1 sigma)
+# around zero, against the scatter of the residual track about its fitted line (at least
+# CENTROID_NOISE_M): the less the forcing-corrected track explains the observed motion, the more the
+# estimate is pulled towards zero. Without forcing over the horizon the held forcing will miss the
+# drift more, so the prior is wider and the observed motion trusted more. All chosen on the training
+# split's centroid errors (docs/forecaster.md).
+DRIFT_MEMORY_H = 1.0
+CENTROID_NOISE_M = 30.0
+DRIFT_PRIOR_MS = {True: 0.05, False: 0.1}          # forcing over the horizon given / held
+# The ridge (hours of lever arm) when the residual is as consistent as the centroid noise, forcing given ahead.
+DRIFT_SHRINK_H = CENTROID_NOISE_M / DRIFT_PRIOR_MS[True] / 3600.0
 MEMBERS = 32
 RADIUS_95 = math.sqrt(-2 * math.log(0.05))     # 2.448: the 95 % radius of a circular 2-D Gaussian
 # 1-sigma errors of given forcing (wind/ocean model vs truth), as in the training data generation.
@@ -65,6 +73,11 @@ class Observations:
     times_s: np.ndarray
     environments: np.ndarray          # [T, 4] wind u/v, current u/v at each observation
     track: ForcingTrack               # observation forcing, then the horizon forcing when given
+
+    @property
+    def forcing_ahead(self) -> bool:
+        """Whether forcing over the horizon was given (else the latest observation's forcing is held)."""
+        return len(self.track.times_s) > len(self.times_s)
 
     def drift_between(self, params: DriftParameters):
         """``drift_of(i0, i1)`` for ``features.window_features``: mean drift velocity between two
@@ -120,8 +133,10 @@ def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
 
     The observed centroids minus the forcing-predicted track (``displacement`` from the first
     observation) should stand still if the forcing were right; their weighted least-squares velocity
-    (weights exp(-age / DRIFT_MEMORY_H), ridge ``DRIFT_SHRINK_H``^2 h^2) is what the forcing misses.
-    One observation, or no time between them, gives zero."""
+    (weights exp(-age / DRIFT_MEMORY_H)) is what the forcing misses. It is shrunk towards zero as a
+    posterior mean: ridge = (residual scatter about the fitted line, at least CENTROID_NOISE_M)^2 /
+    DRIFT_PRIOR_MS^2, the prior wider when no forcing over the horizon was given. One observation, or
+    no time between them, gives zero."""
     t = np.asarray(obs.times_s, float)
     if len(t) < 2:
         return np.zeros(2)
@@ -130,7 +145,12 @@ def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
     w = np.exp((t - t[-1]) / (3600.0 * DRIFT_MEMORY_H))
     tc = t - (w * t).sum() / w.sum()
     rc = residual - (w[:, None] * residual).sum(axis=0) / w.sum()
-    return (w[:, None] * tc[:, None] * rc).sum(axis=0) / ((w * tc ** 2).sum() + (3600.0 * DRIFT_SHRINK_H) ** 2)
+    lever = (w * tc ** 2).sum()
+    moment = (w[:, None] * tc[:, None] * rc).sum(axis=0)
+    scatter = rc - tc[:, None] * (moment / lever)
+    variance = (w[:, None] * scatter ** 2).sum() / (2 * w.sum()) * len(t) / max(len(t) - 2, 1)
+    ridge = max(variance, CENTROID_NOISE_M ** 2) / DRIFT_PRIOR_MS[obs.forcing_ahead] ** 2
+    return moment / (lever + ridge)
 
 
 def history_correction(obs: Observations, params: DriftParameters, horizons_h) -> "Correction":
@@ -160,16 +180,29 @@ def trend(obs: Observations, window_h: float = TREND_H) -> tuple[np.ndarray, flo
     return (tc[:, None] * (c - c.mean(axis=0))).sum(axis=0) / denom, float((tc * (a - a.mean())).sum() / denom)
 
 
+def trend_area(obs: Observations, horizon_s: float) -> float:
+    """The latest area grown on at the ``trend`` rate for ``horizon_s``, never below a quarter of it."""
+    area = obs.shapes[-1].area
+    return max(area + trend(obs)[1] * horizon_s, 0.25 * area)
+
+
 def baseline_geometry(kind: str, obs: Observations, horizon_s: float) -> BaseGeometry:
     last, shape = obs.geometries[-1], obs.shapes[-1]
     if kind == "persistence":
         return last
-    velocity, rate = trend(obs)
+    velocity, _ = trend(obs)
     moved = affinity.translate(last, *(velocity * horizon_s))
     if kind == "constant-velocity":
         return moved
-    factor = math.sqrt(max(shape.area + rate * horizon_s, 0.25 * shape.area) / shape.area)
-    return affinity.scale(moved, factor, factor, origin=tuple(shape.centroid + velocity * horizon_s))
+    return scaled_to(moved, trend_area(obs, horizon_s))
+
+
+def scaled_to(geometry: BaseGeometry, area: float) -> BaseGeometry:
+    """``geometry`` scaled about its centroid to ``area`` (its centroid and shape kept)."""
+    if geometry.is_empty or geometry.area <= 0:
+        return geometry
+    factor = math.sqrt(area / geometry.area)
+    return affinity.scale(geometry, factor, factor, origin=tuple(F.second_moments(geometry)[1]))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -284,9 +317,16 @@ class Settings:
     spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors at F.HORIZONS_H
     members: int = MEMBERS
 
-    def scale(self, kind: str, horizons_h) -> np.ndarray:
-        """Calibration factors at any horizons: linear between the calibrated ones, held beyond."""
-        factors = self.spread_scale.get(kind)
+    @staticmethod
+    def scale_key(kind: str, forcing_ahead: bool = True) -> str:
+        """``spread_scale`` key: the kind, calibrated with forcing over the horizon, or "<kind> held"
+        without it (the latest forcing held: larger errors)."""
+        return kind if forcing_ahead else f"{kind} held"
+
+    def scale(self, kind: str, horizons_h, forcing_ahead: bool = True) -> np.ndarray:
+        """Calibration factors at any horizons: linear between the calibrated ones, held beyond (the
+        factors calibrated with forcing ahead when none were calibrated without)."""
+        factors = self.spread_scale.get(self.scale_key(kind, forcing_ahead), self.spread_scale.get(kind))
         if factors is None:
             return np.ones(len(horizons_h))
         return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
@@ -334,7 +374,7 @@ def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
 def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings,
                     correction: Correction | None, contours: bool) -> list[PlanarForecast]:
     horizons_s = 3600.0 * np.asarray(horizons_h, float)
-    scale = settings.scale(kind, horizons_h)
+    scale = settings.scale(kind, horizons_h, obs.forcing_ahead)
     z = gaussian_members(settings.members)
     if kind in BASELINE_KINDS and not kind.startswith("physics"):
         geometries = [baseline_geometry(kind, obs, h) for h in horizons_s]
@@ -342,16 +382,19 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         raw = np.broadcast_to(z, (len(horizons_s), *z.shape))
     else:
         moved, start = drift(obs.geometries[-1], 0.0, horizons_s, obs.track, settings.params)
+        method = ParticleFootprint(obs.geometries[-1], start)
         raw = forcing_offsets(obs, horizons_s, settings.params, forcing_members(settings.members))
         if correction is not None:
             for j, p in enumerate(moved):
                 m = p.mean(axis=0)
                 moved[j] = m + math.exp(0.5 * correction.log_area[j]) * (p - m) + correction.drift_m[j]
             raw = raw + z[None] * correction.sigma_m[:, None, :]
-        method = ParticleFootprint(obs.geometries[-1], start)
         drawn = [method.draw(p) for p in moved]
         geometries = [d[2] for d in drawn]
         masks = [(d[0], d[1]) for d in drawn]
+        if kind == "physics-corrected":     # spreading corrected too: scaled to the observed area trend
+            geometries = [scaled_to(g, trend_area(obs, h)) for g, h in zip(geometries, horizons_s)]
+            masks = None
     out = []
     for j, h in enumerate(horizons_h):
         offsets = raw[j] * scale[j]

@@ -86,13 +86,14 @@ def load_correctors(weights_dir: Path, kinds) -> dict:
             if k in LEARNED_KINDS and (Path(weights_dir) / f"{k}.pt").is_file()}
 
 
-def score(scenarios, kinds, settings: E.Settings, correctors: dict, *, exact: bool = False, stride: int = 2,
-          progress: bool = True, horizons_h=F.HORIZONS_H) -> Scores:
-    """Every kind on every case (observation noise draw 0) of ``scenarios``."""
+def score(scenarios, kinds, settings: E.Settings, correctors: dict, *, exact: bool = False, held: bool = False,
+          stride: int = 2, progress: bool = True, horizons_h=F.HORIZONS_H) -> Scores:
+    """Every kind on every case (observation noise draw 0) of ``scenarios``; ``held``: no forcing over
+    the horizon (``windows.scenario_cases``)."""
     from .windows import scenario_cases
 
     cases = [c for s in tqdm(scenarios, desc="cases", disable=not progress, leave=False)
-             for c in scenario_cases(s, horizons_h, exact=exact, stride=stride)]
+             for c in scenario_cases(s, horizons_h, exact=exact, held=held, stride=stride)]
     releases = {s.scenario_id: s.params.get("release", "?") for s in scenarios}
     out = Scores(list(kinds), tuple(horizons_h), np.array([c.scenario_id for c in cases]),
                  np.array([releases[c.scenario_id] for c in cases]))
@@ -317,7 +318,7 @@ def latency_ms(weights_dir: Path, kind: str, repeats: int = 10) -> float:
     return 1e3 * (time.process_time() - started) / repeats
 
 
-def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, exact: Scores, calibration: dict,
+def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, held: Scores, exact: Scores, calibration: dict,
                  real_lines: list[str], timings: dict, command: str, split: dict, seed: int, example: str | None) -> str:
     best = best_kind(given)
     learned = best_ltc(given)
@@ -331,7 +332,8 @@ def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, 
           f"Split: {len(split.get('train', []))} training, {len(split.get('val', []))} validation (early stopping and "
           f"calibration) and {len(np.unique(given.scenario))} test scenarios.", "",
           "## Headline", "",
-          f"- Best kind on this split by mean IoU: **{best}** (the default `--model`: `{DEFAULT_MODEL}`)."]
+          f"- Best kind on this split by mean IoU: **{best}** with forcing over the horizon, **{best_kind(held)}** "
+          f"without it (the latest forcing held); the default `--model`: `{DEFAULT_MODEL}`."]
     if learned:
         md.append(f"- Best LTC solver: **{learned}**; the paired comparisons below are {learned} against every "
                   "other kind, the LSTM included.")
@@ -347,6 +349,19 @@ def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, 
                *paired_table(given, learned, [k for k in given.kinds if k != learned], seed), "",
                f"### Where {learned} does not win (against the baselines and the LSTM)", "",
                *(losses(given, learned, seed) or ["- nowhere: every comparison is significantly better."]), ""]
+    held_ltc = best_ltc(held)
+    md += ["## Given forcing up to the latest observation only (held over the horizon)", "",
+           "The same cases without forcing over the horizon, as the public API is called without `horizon_forcing`: "
+           "every kind holds the latest observation's (erroneous) forcing while the real forcing goes on changing "
+           "(wind shifts, inertial and tidal current). Calibrated separately (`<kind> held` in `calibration.json`).", "",
+           "IoU:", "", *metric_table(held, "iou", 3, seed), "", "Centroid error (km):", "",
+           *metric_table(held, "centroid_km", 2, seed), ""]
+    if held_ltc:
+        md += [f"Paired differences, {held_ltc} minus each other kind (held forcing):", "",
+               *paired_table(held, held_ltc, [k for k in held.kinds if k != held_ltc], seed), "",
+               f"Where {held_ltc} does not win with held forcing (against the baselines and the LSTM):", "",
+               *(losses(held, held_ltc, seed) or ["- nowhere: every comparison is significantly better."]), "",
+               "Calibration with held forcing:", "", *reliability_table(held), ""]
     md += ["## With the exact forcing", "",
            "The same cases when the forecaster is given the forcing that moved the oil.", "",
            "IoU:", "", *metric_table(exact, "iou", 3, seed), "", "Centroid error (km):", "",
@@ -408,6 +423,7 @@ def main(argv=None, args=None) -> int:
     kinds = [*correctors, *BASELINE_KINDS]
     progress = not args.quiet
     given = score(split.test, kinds, settings, correctors, stride=args.stride, progress=progress)
+    held = score(split.test, kinds, settings, correctors, held=True, stride=args.stride, progress=progress)
     exact = score(split.test, kinds, settings, correctors, exact=True, stride=args.stride, progress=progress)
     img = args.report.parent / "img"
     plot_horizons(given, img / "forecaster_horizons.png", "OOD test, given forcing")
@@ -431,11 +447,14 @@ def main(argv=None, args=None) -> int:
                   ["The DWH composites are not present (`../shared/data/dwh`); pass `--dwh FILES`."])
     timings = {k: latency_ms(args.weights, k) for k in kinds}
     command = "python -m oilspill_moos.forecaster evaluate" + (" " + " ".join(argv) if argv else "")
-    best = write_report(args.report, img, args.weights, given, exact, calibration, real_lines, timings, command,
+    best = write_report(args.report, img, args.weights, given, held, exact, calibration, real_lines, timings, command,
                         split.ids(), args.seed, example)
     summary = {"best_kind": best, "iou": {k: given.iou[k].mean(axis=0).round(3).tolist() for k in kinds},
                "centroid_km": {k: given.centroid_km[k].mean(axis=0).round(2).tolist() for k in kinds},
-               "coverage95": {k: coverage(given, k, 0.95).round(3).tolist() for k in kinds}}
+               "coverage95": {k: coverage(given, k, 0.95).round(3).tolist() for k in kinds},
+               "held": {"best_kind": best_kind(held), "iou": {k: held.iou[k].mean(axis=0).round(3).tolist() for k in kinds},
+                        "centroid_km": {k: held.centroid_km[k].mean(axis=0).round(2).tolist() for k in kinds},
+                        "coverage95": {k: coverage(held, k, 0.95).round(3).tolist() for k in kinds}}}
     (Path(args.weights) / "evaluation.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps(summary))
     print(f"report written to {args.report}")

@@ -254,7 +254,7 @@ class Corrector:
 
         error = forcing_error(obs, params)
         x, dt, angle = window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params),
-                                       drift_error=error)
+                                       drift_error=error, forcing_ahead=obs.forcing_ahead)
         return x, dt, angle, history_correction(obs, params, self.horizons_h)
 
     def corrections(self, observations, params) -> list:

@@ -124,7 +124,8 @@ def case_example(case, params: DriftParameters, horizons_h=F.HORIZONS_H):
     on by its history correction, ``engine.history_correction``), log area ratio."""
     error = E.forcing_error(case.obs, params)
     x, dt, angle = F.window_features(case.obs.shapes, case.obs.times_s, case.obs.environments,
-                                     case.obs.drift_between(params), drift_error=error)
+                                     case.obs.drift_between(params), drift_error=error,
+                                     forcing_ahead=case.obs.forcing_ahead)
     horizons_s = 3600.0 * np.asarray(horizons_h, float)
     moved, start = drift(case.obs.geometries[-1], 0.0, horizons_s, case.obs.track, params)
     method = ParticleFootprint(case.obs.geometries[-1], start)
@@ -142,18 +143,25 @@ def exact_draw(draw: int) -> bool:
     return draw % 3 == 2
 
 
+def held_draw(draw: int) -> bool:
+    """Every other noise draw is given no forcing over the horizon (the latest held, as the public API
+    does without ``horizon_forcing``): the model learns both cases, told apart by ``forcing_ahead``."""
+    return draw % 2 == 1
+
+
 def scenario_examples(scenario, draw: int, params: DriftParameters, cache_dir: Path | None = None) -> list:
     """[(x, dt, y)] of one scenario and noise draw; read from / written to ``cache_dir`` (one pickle per
     scenario and draw, reused only when built from the same scenario, draw, prior and features)."""
     key = {"scenario_id": scenario.scenario_id, "seed": scenario.seed, "observations": len(scenario), "draw": draw,
-           "exact": exact_draw(draw), "drift": params.to_dict(), "features": list(F.FEATURE_NAMES),
-           "targets": list(F.TARGET_NAMES), "drift_memory": [E.DRIFT_MEMORY_H, E.DRIFT_SHRINK_H]}
+           "exact": exact_draw(draw), "held": held_draw(draw), "drift": params.to_dict(), "features": list(F.FEATURE_NAMES),
+           "targets": list(F.TARGET_NAMES), "drift_memory": [E.DRIFT_MEMORY_H, E.CENTROID_NOISE_M, E.DRIFT_PRIOR_MS[True], E.DRIFT_PRIOR_MS[False]]}
     path = None if cache_dir is None else Path(cache_dir) / f"{scenario.scenario_id}-{draw}.pkl"
     if path is not None and path.is_file():
         blob = pickle.loads(path.read_bytes())
         if blob.get("key") == key:
             return blob["examples"]
-    examples = [case_example(case, params) for case in scenario_cases(scenario, noise_seed=draw, exact=exact_draw(draw))]
+    examples = [case_example(case, params) for case in scenario_cases(scenario, noise_seed=draw, exact=exact_draw(draw),
+                                                                         held=held_draw(draw))]
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         partial = path.with_suffix(f".{os.getpid()}.part")
@@ -287,7 +295,7 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0, noise_draws: int = 3,
+def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0, noise_draws: int = 4,
                  progress: bool = True, adaptive_fused: bool = False, examples_cache: Path | None = None,
                  calibrate: bool = True, **overrides) -> dict:
     """Train each kind on the same examples and scalers; write ``<kind>.pt``, then calibrate every kind
@@ -300,7 +308,7 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     params = DriftParameters()
     started = time.perf_counter()
     train_ex = build_examples(split.train, params, noise_draws, progress, examples_cache)
-    val_ex = build_examples(split.val, params, 1, progress, examples_cache)
+    val_ex = build_examples(split.val, params, 2, progress, examples_cache)     # with and without forcing ahead
     feature_scaler = F.FeatureScaler.fit(train_ex.x.reshape(-1, train_ex.x.shape[-1]))
     mean, std = train_ex.y.mean(axis=0), np.maximum(train_ex.y.std(axis=0), 1e-6)
     extra = {"feature_scaler": feature_scaler.to_dict(), "target_scaler": {"mean": mean.tolist(), "std": std.tolist()},
@@ -355,11 +363,13 @@ def write_calibration(out_dir: Path, split, params: DriftParameters, record: dic
     from .models import Corrector
 
     correctors = {k: Corrector.load(out_dir / f"{k}.pt") for k in KINDS if (out_dir / f"{k}.pt").is_file()}
-    val_cases = [c for s in split.val for c in scenario_cases(s, stride=1)]
     settings = E.Settings(params)
     factors = {}
-    for kind in tqdm([*correctors, *E.BASELINE_KINDS], desc="calibration", disable=not progress):
-        factors.update(calibrate(val_cases, [kind], settings, correctors))
+    for held in (False, True):
+        val_cases = [c for s in split.val for c in scenario_cases(s, stride=1, held=held)]
+        for kind in tqdm([*correctors, *E.BASELINE_KINDS], desc="calibration", disable=not progress):
+            for name, value in calibrate(val_cases, [kind], settings, correctors).items():
+                factors[E.Settings.scale_key(name, forcing_ahead=not held)] = value
     ids = split.ids()
     ids["test"] = ids["test"] + [s.scenario_id for s in load_dataset()]
     # re-read just before writing: another `train --model` run may share the directory
@@ -382,7 +392,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     parser.add_argument("--batch-size", type=int, default=TrainConfig.batch_size)
     parser.add_argument("--seed", type=int, default=TrainConfig.seed)
     parser.add_argument("--split-seed", type=int, default=0)
-    parser.add_argument("--noise-draws", type=int, default=3, help="observation-noise draws per training scenario")
+    parser.add_argument("--noise-draws", type=int, default=4, help="observation-noise draws per training scenario "
+                        "(every third given the exact forcing, every other none over the horizon)")
     parser.add_argument("--hidden", type=int, default=TrainConfig.hidden)
     parser.add_argument("--unfolds", type=int, help="LTC sub-steps per observation (default: per solver, 2 for RK4, 4 otherwise)")
     parser.add_argument("--adaptive", action="store_true", help="adaptive step for the ltc-fused model")

@@ -3,7 +3,8 @@ observation time (up to ``WINDOW`` noisy observations, the forcing at each, a fo
 horizon) and the clean truth at each horizon it is scored against.
 
 The given forcing is the scenario's erroneous ``hourly_given`` series (``exact=True``: the forcing that
-moved the oil). Observations carry the noise of ``Scenario.observed``. Everything is on one plane per
+moved the oil). ``held=True`` gives no forcing over the horizon, as the public API does when none is
+passed: the forecaster holds the latest observation's forcing while the real forcing goes on changing. Observations carry the noise of ``Scenario.observed``. Everything is on one plane per
 scenario; the forecaster only ever sees positions relative to the latest observation.
 """
 from __future__ import annotations
@@ -31,7 +32,7 @@ class Case:
 
 
 def scenario_cases(scenario, horizons_h=F.HORIZONS_H, *, noise_seed: int = 0, noise: bool = True,
-                   exact: bool = False, stride: int = 1, min_history: int = 2, window: int = F.WINDOW) -> list[Case]:
+                   exact: bool = False, held: bool = False, stride: int = 1, min_history: int = 2, window: int = F.WINDOW) -> list[Case]:
     """Cases at every ``stride``-th observation with at least ``min_history`` observations before and
     including it and the truth known at every horizon."""
     if scenario.hourly_given is None:
@@ -60,7 +61,7 @@ def scenario_cases(scenario, horizons_h=F.HORIZONS_H, *, noise_seed: int = 0, no
         first = max(0, k - window + 1)
         obs_hours = hours[index[first:k + 1]]
         rows = series[obs_hours.astype(int), :4]
-        ahead = np.arange(1, MAX_HORIZON_H + 1, dtype=float)
+        ahead = np.arange(1, 0 if held else MAX_HORIZON_H + 1, dtype=float)
         track = ForcingTrack(np.concatenate([(obs_hours - end) * 3600, ahead * 3600]),
                              np.vstack([rows, series[(end + ahead).astype(int), :4]]))
         obs = Observations(plane, obs_planar[first:k + 1], obs_shapes[first:k + 1], (obs_hours - end) * 3600.0, rows, track)

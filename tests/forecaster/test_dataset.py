@@ -93,3 +93,25 @@ def test_save_and_load_round_trip(tmp_path):
     assert np.allclose(back.times_h, s.times_h) and back.geometries[2].equals_exact(geoms[2], 1e-4)
     with pytest.raises(FileNotFoundError, match="absent.npz: dataset file missing"):
         load_dataset(tmp_path / "absent")
+
+
+def test_held_forcing_cases_are_what_the_public_api_builds_without_horizon_forcing(gulf):
+    """``scenario_cases(held=True)``: the same observations and forcing rows, no forcing over the horizon,
+    exactly the ``Observations`` that ``engine.prepare`` makes when no ``horizon_forcing`` is passed."""
+    from oilspill_moos.forecaster import engine as E
+    from oilspill_moos.forecaster.windows import scenario_cases
+
+    s = gulf[0]
+    ahead, held = (scenario_cases(s, stride=7, held=h) for h in (False, True))
+    assert len(ahead) == len(held) > 0
+    for a, h in zip(ahead, held):
+        assert a.obs.forcing_ahead and not h.obs.forcing_ahead
+        assert np.array_equal(a.obs.environments, h.obs.environments) and np.array_equal(a.obs.times_s, h.obs.times_s)
+        assert np.array_equal(h.obs.track.times_s, h.obs.times_s) and np.array_equal(h.obs.track.values, h.obs.environments)
+        assert np.allclose(h.obs.track.at(3600.0 * np.array([3, 15])), h.obs.environments[-1])
+    case = held[0]
+    public = E.prepare([case.obs.plane.to_lonlat(g) for g in case.obs.geometries],
+                       [datetime(2026, 1, 1, tzinfo=timezone.utc).fromtimestamp(t + 1e9, timezone.utc) for t in case.obs.times_s],
+                       case.obs.environments)
+    assert not public.forcing_ahead
+    assert np.array_equal(public.track.values, case.obs.track.values)

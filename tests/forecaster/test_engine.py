@@ -135,6 +135,55 @@ def test_forcing_error_recovers_a_known_drift_error():
         assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * error, atol=0.02 * 2_000.0)
 
 
+def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_one():
+    """Known answer: uniform flow the forcing misses by (0.12, -0.05) m/s. With forcing over the horizon
+    the estimate is the documented posterior mean (residual as consistent as the centroid noise); held,
+    the prior is wider and it recovers the bias more closely. A residual that zigzags about its trend
+    (forcing that explains the motion only on average) is pulled further towards zero; a track the
+    forcing explains gives zero in both modes."""
+    hours = np.array([0, 1, 2, 3, 5, 6, 8, 9, 10, 12.0])
+    offset = np.array([0.12, -0.05])
+    ahead = drifting_history(offset, [7.0, -2.0, 0.2, 0.1], hours)
+    held = E.Observations(ahead.plane, ahead.geometries, ahead.shapes, ahead.times_s, ahead.environments,
+                          ForcingTrack(ahead.track.times_s[:len(hours)], ahead.track.values[:len(hours)]))
+    assert ahead.forcing_ahead and not held.forcing_ahead
+    params = E.DriftParameters()
+    t = 3600.0 * (hours - hours[-1])
+    w = np.exp(t / (3600.0 * E.DRIFT_MEMORY_H))
+    lever = (w * (t - (w * t).sum() / w.sum()) ** 2).sum()
+    for obs, prior in ((ahead, E.DRIFT_PRIOR_MS[True]), (held, E.DRIFT_PRIOR_MS[False])):
+        shrink = lever / (lever + (E.CENTROID_NOISE_M / prior) ** 2)
+        assert np.allclose(E.forcing_error(obs, params), shrink * offset, atol=1e-4)
+    assert np.linalg.norm(E.forcing_error(held, params) - offset) < np.linalg.norm(E.forcing_error(ahead, params) - offset) < 0.05
+    assert np.linalg.norm(E.forcing_error(held, params) - offset) < 0.01
+    # the same mean miss, but each observation 600 m off the line in turn: less trust
+    zigzag = [affinity.translate(g, 600.0 * (-1) ** k, 0.0) for k, g in enumerate(ahead.geometries)]
+    erratic = planar_observations(zigzag, hours, ahead.environments, ahead=[[7.0, -2.0, 0.2, 0.1]] * 15)
+    assert np.linalg.norm(E.forcing_error(erratic, params)) < 0.5 * np.linalg.norm(E.forcing_error(ahead, params))
+    exact = drifting_history(np.zeros(2), [7.0, -2.0, 0.2, 0.1], hours)
+    exact_held = E.Observations(exact.plane, exact.geometries, exact.shapes, exact.times_s, exact.environments,
+                                ForcingTrack(exact.track.times_s[:len(hours)], exact.track.values[:len(hours)]))
+    for obs in (exact, exact_held):
+        assert np.allclose(E.forcing_error(obs, params), 0.0, atol=1e-5)
+
+
+def test_physics_corrected_spreads_at_the_observed_area_trend():
+    """Known answer: a round slick drifting exactly with the forcing, its area growing by 4 km^2 an hour.
+    physics-corrected keeps the prior's drift and grows to the trend's area at every horizon."""
+    forcing = [6.0, 1.0, 0.1, -0.05]
+    params = E.DriftParameters()
+    velocity = drift_velocity(np.asarray(forcing), params.windage, params.deflection_deg)
+    hours = np.arange(8.0)
+    geoms = [Point(*(velocity * 3600.0 * h)).buffer(math.sqrt((20e6 + 4e6 * h) / math.pi), quad_segs=64) for h in hours]
+    obs = planar_observations(geoms, hours, np.tile(forcing, (len(hours), 1)), ahead=[forcing] * 15)
+    for horizon in (3.0, 15.0):
+        physics, corrected = (E.forecast_plane(k, obs, (horizon,), E.Settings(), contours=False)[0]
+                              for k in ("physics", "physics-corrected"))
+        assert corrected.geometry.area == pytest.approx(E.trend_area(obs, 3600.0 * horizon), rel=0.08)
+        assert E.trend_area(obs, 3600.0 * horizon) == pytest.approx(48e6 + 4e6 * horizon, rel=1e-3)
+        assert np.linalg.norm(corrected.centroid - physics.centroid) < 100.0
+
+
 def test_learned_correction_at_any_horizon():
     """Rows at the trained horizons are kept; between them the correction is linear in the horizon (from
     zero at 0 h), past the last one in proportion to the horizon."""

@@ -67,6 +67,15 @@ def test_features_ignore_where_and_when_and_pad_at_the_front():
     assert x[-1, I["rel_log_area"]] == 0 and x[-1, I["rel_x_km"]] == 0
 
 
+def test_forcing_ahead_says_only_whether_horizon_forcing_was_given():
+    shapes, times, envs = sequence()
+    held, _, _ = F.window_features(shapes, times, envs, drift_of(envs))
+    ahead, _, _ = F.window_features(shapes, times, envs, drift_of(envs), forcing_ahead=True)
+    column = I["forcing_ahead"]
+    assert np.all(ahead[-5:, column] == 1) and np.all(ahead[:-5, column] == 0) and np.all(held[:, column] == 0)
+    assert np.array_equal(np.delete(ahead, column, axis=1), np.delete(held, column, axis=1))
+
+
 def test_prepare_refuses_bad_input_by_name():
     g = F.to_lonlat(Point(0, 0).buffer(1_000))
     from datetime import datetime, timezone
