@@ -61,7 +61,7 @@ class InfoBuffer:
 
 
 
-@dataclass
+@dataclass(slots=True)
 class Post:
     var: str
     value: Value

@@ -51,6 +51,8 @@ class BHV_OpRegion(IvPBehavior):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.polygons: list[np.ndarray] = []
+        self.areas: list[shapely.Polygon] = []   # the same, as prepared shapely polygons: made once, asked every iteration
+        self._view: tuple = ()                   # (points, (active, name, hints), text) of the last VIEW_POLYGON
         self.trigger_entry_time = 1.0
         self.trigger_on_entry = False      # set by a trigger_entry_time > 0: armed once inside long enough
         self.entry_made = False
@@ -67,6 +69,9 @@ class BHV_OpRegion(IvPBehavior):
         if len(pts) < 3:
             raise ValueError("an operation polygon needs at least 3 vertices")
         self.polygons.append(pts)
+        area = shapely.Polygon(pts)
+        shapely.prepare(area)
+        self.areas.append(area)
 
     @param("trigger_entry_time", parse=NON_NEGATIVE, default="1",
            doc="setting it (> 0) enforces the polygon only once ownship has been inside it this many "
@@ -110,7 +115,8 @@ class BHV_OpRegion(IvPBehavior):
         return None
 
     def verify_polygon(self, x: float, y: float, delta: float) -> None:
-        inside = all(shapely.Polygon(p).contains(shapely.Point(x, y)) for p in self.polygons)
+        here = shapely.Point(x, y)
+        inside = all(area.contains(here) for area in self.areas)
         if inside:
             self.secs_out = 0.0
             self.secs_in = self.secs_in + delta if self.was_in else 0.0
@@ -145,7 +151,7 @@ class BHV_OpRegion(IvPBehavior):
         speed, heading = self.info.number("NAV_SPEED"), self.info.number("NAV_HEADING")
         if speed is None or heading is None or not self.polygons:
             return
-        poly = shapely.Polygon(self.polygons[-1])
+        poly = self.areas[-1]
         along = perimeter_distance_along(poly, x, y, heading)
         self.post("OPREG_TRAJECTORY_PERIM_DIST", along if along <= 1 else float(round(along)))
         self.post("OPREG_TRAJECTORY_PERIM_ETA", float(round(along / speed)) if speed > 0 else 0.0)
@@ -159,9 +165,12 @@ class BHV_OpRegion(IvPBehavior):
     def post_polygon(self, active: bool) -> None:
         if not self.polygons:
             return
-        spec = f"{format_seglist(self.polygons[-1])},label={self.ownship}_{self.name}"
-        if active:
-            spec += "".join(hint_fields(self.hints, k) for k in self.hints if self.hints[k])
-        else:
-            spec += ",active=false"
-        self.post("VIEW_POLYGON", spec)
+        points, key = self.polygons[-1], (active, self.name, tuple(self.hints.items()))
+        if not self._view or self._view[0] is not points or self._view[1] != key:   # built once, posted every iteration
+            spec = f"{format_seglist(points)},label={self.ownship}_{self.name}"
+            if active:
+                spec += "".join(hint_fields(self.hints, k) for k in self.hints if self.hints[k])
+            else:
+                spec += ",active=false"
+            self._view = (points, key, spec)
+        self.post("VIEW_POLYGON", self._view[2])

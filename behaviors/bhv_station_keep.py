@@ -53,6 +53,7 @@ class BHV_StationKeep(IvPBehavior):
         self.transit = "pending_progress_start"
         self.hints = dict(edge_size="1", vertex_size="1", edge_color="light_blue", label_color="white",
                           vertex_color="red")
+        self._circles: tuple = (None, [])   # (what the ring texts show, [(tag, text)])
 
     @param("station_pt", "point", parse=Parser("x,y", lambda value, key: parse_point(value)),
            doc="static station, applied on the first run and after an update")
@@ -84,7 +85,7 @@ class BHV_StationKeep(IvPBehavior):
         apply_visual_hints(self.hints, value)
 
     def _set_station(self, pt: tuple[float, float]) -> None:
-        self.station = pt
+        self.station = (float(pt[0]), float(pt[1]))
         self.pskeep = "hibernating"
         self.samples.clear()
         self.transit = "pending_progress_start"
@@ -122,19 +123,31 @@ class BHV_StationKeep(IvPBehavior):
             self.samples.clear()
 
     def circles(self, active: bool) -> None:
+        """The station's rings as VIEW_POLYGONs; their texts are built again only when what they show
+        changes (they are posted every running iteration)."""
         if self.station is None:
             return
+        key = (self.station, active, self.name, tuple(self.hints.items()), self.inner, self.outer,
+               self.hibernation_radius)
+        if self._circles[0] != key:
+            self._circles = (key, self._circle_texts(active))
+        for tag, text in self._circles[1]:
+            self.post("VIEW_POLYGON", text, key=tag)
+
+    def _circle_texts(self, active: bool) -> list[tuple[str, str]]:
         x, y = self.station
         rings = [("out", self.outer)]
         if self.inner < self.outer:
             rings.append(("in", self.inner))
         if self.hibernation_radius > self.outer:
             rings.append(("hiber", self.hibernation_radius))
+        texts = []
         for tag, radius in rings:
             text = (f"radial:: x={x:.1f},y={y:.1f},source={self.ownship}:{self.name},pts=32"
                     + hint_fields(self.hints, "edge_size", "vertex_size", "edge_color", "label_color", "vertex_color")
                     + f",label={self.ownship}:station-keep-{tag},radius={radius:.1f}")
-            self.post("VIEW_POLYGON", text if active else text + ",active=false", key=tag)
+            texts.append((tag, text if active else text + ",active=false"))
+        return texts
 
     def on_run_to_idle(self) -> None:
         self.circles(False)

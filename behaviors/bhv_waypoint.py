@@ -300,9 +300,8 @@ class BHV_Waypoint(IvPBehavior):
         elif self.slip_radius > self.capture_radius and dist > self.cpa and self.cpa <= self.slip_radius:
             hit, self.slip_hits = True, self.slip_hits + 1
         if not hit and self.capture_line and self.prev is not None:
-            to_prev = np.subtract(self.prev, (tx, ty))
-            to_os = np.subtract((osx, osy), (tx, ty))
-            hit = bool(np.hypot(*to_prev) > 1e-9 and np.dot(to_prev, to_os) <= 0)
+            px, py = self.prev      # plain floats: numpy on 2-vectors costs more than the sums
+            hit = math.hypot(px - tx, py - ty) > 1e-9 and (px - tx) * (osx - tx) + (py - ty) * (osy - ty) <= 0
         if not hit:
             return "in-transit"
         self.ix += 1

@@ -15,6 +15,7 @@ import numpy as np
 
 from moosdb_py.formats import FormatError, parse_number, parse_pairs
 
+from .geometry import are_floats
 from .logic import as_number
 
 # NODE_REPORT field -> info-buffer suffix; keys are matched without regard to case.
@@ -141,7 +142,11 @@ def extrapolate(x: float, y: float, speed: float, heading: float, age: float, de
 
 
 def velocity(heading, speed):
-    """(vx, vy) of a marine heading (degrees, 0 = north, 90 = east) and a speed; numpy-friendly."""
+    """(vx, vy) of a marine heading (degrees, 0 = north, 90 = east) and a speed; numpy-friendly,
+    plain math for two floats (the closing speed asks for single ones every iteration)."""
+    if are_floats(heading, speed):
+        a = math.radians(heading)
+        return speed * math.sin(a), speed * math.cos(a)
     a = np.radians(heading)
     return np.multiply(speed, np.sin(a)), np.multiply(speed, np.cos(a))
 
@@ -191,10 +196,11 @@ def closing_speed(osx: float, osy: float, osh: float, osv: float, cnx: float, cn
 
 
 def _relative_velocity(osh: float, osv: float, cnh: float, cnv: float) -> tuple[float, float]:
-    """Ownship's velocity minus the contact's, for one heading and speed each: plain floats, as numpy
-    on scalars costs ten times more (the contact manager asks this of every contact every iteration)."""
-    a, b = math.radians(osh), math.radians(cnh)
-    return osv * math.sin(a) - cnv * math.sin(b), osv * math.cos(a) - cnv * math.cos(b)
+    """Ownship's velocity minus the contact's, for one heading and speed each: plain floats (`velocity`'s
+    scalar form), as numpy on scalars costs ten times more (the contact manager asks this of every
+    contact every iteration)."""
+    (ovx, ovy), (cvx, cvy) = velocity(float(osh), float(osv)), velocity(float(cnh), float(cnv))
+    return ovx - cvx, ovy - cvy
 
 
 def cpa_range(osx: float, osy: float, osh: float, osv: float,

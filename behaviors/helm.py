@@ -91,8 +91,11 @@ class Helm:
         self.hold_on_apps: list[str] = []
         self.config_warnings: list[str] = []   # each one means MALCONFIG
         self.run_warnings: list[str] = []      # nav grace, holds: reported once each
-        self.timing = {"create_time": 0.0, "solve_time": 0.0, "loop_time": 0.0}
-        self.max_timing = {"max_create_time": 0.0, "max_solve_time": 0.0, "max_loop_time": 0.0}
+        # IVPHELM_SUMMARY's timing fields, in its order: the latest create/solve/loop times and their maxima.
+        self.timing = dict.fromkeys(("create_time", "solve_time", "loop_time", "max_create_time", "max_solve_time",
+                                     "max_loop_time"), 0.0)
+        self.nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in domain else [])
+        self.desired_names = {v.name: self._desired_name(v.name) for v in domain.vars}
 
     def _track_deltas(self) -> None:
         for bhv in self.behaviors + [t for _, t in self.templates.values()]:
@@ -169,8 +172,7 @@ class Helm:
 
     def _holding(self, now: float) -> bool:
         """Nav hold (NAV_* not all seen yet) and hold_on_apps (apps not all in DB_CLIENTS)."""
-        nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in self.domain else [])
-        missing = [v for v in nav_needed if self.info.get(v) is None]
+        missing = [v for v in self.nav_needed if self.info.get(v) is None]
         if missing and now - self.start_time > self.nav_grace:
             self._warn_once(f"No {','.join(missing)} received after nav_grace={self.nav_grace:g} s")
         if self.hold_on_apps:
@@ -218,7 +220,8 @@ class Helm:
             bhv_posts += [(bhv, p) for p in bhv.take_posts()]
         solve_start = perf_counter()
         self.decision = solve(self.domain, functions) if functions else {}
-        self._note_times(create=solve_start - loop_start, solve=perf_counter() - solve_start)
+        self._note_time("create_time", solve_start - loop_start)
+        self._note_time("solve_time", perf_counter() - solve_start)
         out += mode_posts
         error = False
         for bhv, post in bhv_posts:
@@ -240,16 +243,16 @@ class Helm:
             out.append(("BHV_ERROR", status, ""))
         else:
             status = "clear"
-        self._note_times(loop=perf_counter() - loop_start)
+        self._note_time("loop_time", perf_counter() - loop_start)
         out += self._summary(now, functions, halted=status == "BehaviorError")
         out += self._allstop(status)
         self.info.clear_deltas()
         return out
 
-    def _note_times(self, **seconds: float) -> None:
-        for name, value in seconds.items():
-            self.timing[f"{name}_time"] = value
-            self.max_timing[f"max_{name}_time"] = max(self.max_timing[f"max_{name}_time"], value)
+    def _note_time(self, name: str, seconds: float) -> None:
+        self.timing[name] = seconds
+        if seconds > self.timing["max_" + name]:
+            self.timing["max_" + name] = seconds
 
     def _allstop(self, status: str) -> list[HelmPost]:
         out: list[HelmPost] = []
@@ -265,7 +268,7 @@ class Helm:
         if status != "clear" and self.park_on_allstop and self.allow_park:
             self.status = "PARK"
         if status == "clear":
-            out += [(self._desired_name(n), float(v), "") for n, v in self.decision.items()]
+            out += [(self.desired_names[n], float(v), "") for n, v in self.decision.items()]
         return out
 
     def _desired_name(self, var: str, prefixed: bool = True) -> str:
@@ -328,7 +331,7 @@ class Helm:
         fields = {
             "ofnum": str(len(functions)),
             "warnings": str(len(self.config_warnings) + len(self.run_warnings)),
-            **{k: f"{v:.4f}" for k, v in (self.timing | self.max_timing).items()},
+            **{k: f"{v:.4f}" for k, v in self.timing.items()},
             "halted": str(halted).lower(),   # a behaviour posted BHV_ERROR
             "active_goal": "false",
             "modes": "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items())),

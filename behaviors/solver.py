@@ -12,7 +12,8 @@ def _scale(f: IvPFunction) -> tuple[float, float]:
     most 100, then weighted by pwt. A separable function's range comes from its parts (the min of a sum
     of independent parts is the sum of their mins)."""
     if f.parts is not None:
-        lo, hi = sum(float(p.min()) for p in f.parts), sum(float(p.max()) for p in f.parts)
+        bounds = f.part_bounds()
+        lo, hi = sum(b[0] for b in bounds), sum(b[1] for b in bounds)
     else:
         lo, hi = float(f.values.min()), float(f.values.max())
     return (lo, 100.0 / (hi - lo) * f.pwt) if hi - lo > 100.0 else (0.0, f.pwt)
@@ -34,7 +35,7 @@ def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
             k = _scale(f)[1]
             for name, part in zip(f.vars, f.parts):
                 totals[name] = part * k if name not in totals else totals[name] + part * k
-        index = [int(np.argmax(totals[n])) for n in names]
+        index = [int(totals[n].argmax()) for n in names]
     else:
         shape = tuple(domain.var(n).npts for n in names)
         total = np.zeros(shape)
@@ -46,7 +47,7 @@ def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
             for ax in sorted(axes):
                 full_shape[ax] = shape[ax]
             total += arr.reshape(full_shape)
-        index = np.unravel_index(int(np.argmax(total)), shape)
+        index = np.unravel_index(int(total.argmax()), shape)
     return {n: round(float(domain.var(n).values[i]), 9) for n, i in zip(names, index)}
 
 

@@ -4,15 +4,15 @@ Each builder returns the dense array of utilities at the variable's grid points.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from .domain import DomainVar
 
 
-@dataclass(frozen=True)
-class PeakComponent:
+class PeakComponent(NamedTuple):
+    """One peak; a tuple, so that making one and hashing it (the peak cache key) cost little every helm iteration."""
     summit: float
     peakwidth: float = 0.0
     basewidth: float = 0.0
@@ -21,21 +21,27 @@ class PeakComponent:
     maxutil: float = 100.0
 
 
-def _peak(var: DomainVar, c: PeakComponent, value_wrap: bool) -> np.ndarray:
-    if c.minutil >= c.maxutil:
-        raise ValueError(f"ZAIC_PEAK: minutil {c.minutil} must be below maxutil {c.maxutil}")
-    v = var.values
-    d = np.abs(v - c.summit)
+def _distances(var: DomainVar, components: list[PeakComponent], value_wrap: bool) -> np.ndarray:
+    """Distance of every grid point from each summit (one row per component), around the circle when
+    value_wrap: computed for all components at once."""
+    d = np.abs(var.values - np.array([c.summit for c in components])[:, None])
     if value_wrap:
         span = var.high - var.low + var.delta
         d = np.minimum(d, np.abs(span - d))
+    return d
+
+
+def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
+    """One component's utilities from the grid points' distances to its summit."""
+    if c.minutil >= c.maxutil:
+        raise ValueError(f"ZAIC_PEAK: minutil {c.minutil} must be below maxutil {c.maxutil}")
     pw, bw = max(c.peakwidth, 0.0), max(c.basewidth, 0.0)
     sd = min(c.summitdelta, c.maxutil - c.minutil) if pw > 0 else 0.0
     top = c.maxutil - sd
     if bw > 0 and sd >= 0:      # the usual shape is piecewise linear in d: one interpolation
         xp, fp = ((0.0, pw, pw + bw), (c.maxutil, top, c.minutil)) if pw > 0 else ((0.0, bw), (c.maxutil, c.minutil))
         return np.interp(d, xp, fp)
-    u = np.full(v.shape, c.minutil)
+    u = np.full(d.shape, c.minutil)
     if bw > 0:
         u = np.where(d <= pw + bw, top - (top - c.minutil) * (d - pw) / bw, u)
     else:
@@ -70,15 +76,16 @@ _PEAKS: dict[tuple, np.ndarray] = {}
 
 def _combined_peak(var: DomainVar, components: list[PeakComponent], value_wrap: bool,
                    max_mode: bool) -> np.ndarray:
-    u = _peak(var, components[0], value_wrap)
-    for c in components[1:]:      # pairwise, as np.max / np.sum over the stacked parts, without the stack
-        u = np.maximum(u, _peak(var, c, value_wrap)) if max_mode else u + _peak(var, c, value_wrap)
-    low, high = u.min(), u.max()
-    for c in components:
-        if low == high == c.minutil:
-            u = u.copy()
-            u[var.index_of(c.summit)] = c.maxutil
-            low, high = u.min(), u.max()
+    d = _distances(var, components, value_wrap)
+    u = _peak(d[0], components[0])
+    for row, c in zip(d[1:], components[1:]):   # pairwise, as np.max / np.sum over the stacked parts, without the stack
+        u = np.maximum(u, _peak(row, c)) if max_mode else u + _peak(row, c)
+    # Summit insist: a flat result at a component's minutil gets that component's maxutil at its
+    # summit's grid point. Flat means every point equals u[0], so no scan unless u[0] is such a minutil.
+    first = next((c for c in components if c.minutil == u[0]), None)
+    if first is not None and u.min() == u.max():
+        u = u.copy()
+        u[var.index_of(first.summit)] = first.maxutil
     return u
 
 

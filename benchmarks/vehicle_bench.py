@@ -1,7 +1,7 @@
 """CPU a vehicle community costs per simulated second, and the largest fleet that keeps its AppTicks.
 
     python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one]
-    python benchmarks/vehicle_bench.py --oilspill 8 --warps 20 [--demo-ticks]   # the demo's vessels and shoreside
+    python benchmarks/vehicle_bench.py --oilspill 8 --warps 30,40 [--demo-ticks]   # the demo's vessels and shoreside
 
 Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
 pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process
@@ -80,14 +80,16 @@ def tree_cpu(root: int) -> float:
     return total
 
 
-def tick_counts(watchers: list[MOOSClient]) -> dict[str, tuple[int, int]]:
-    """The latest (Iterations, TicksMissed) per app of every vessel (`<community>/<APP>`)."""
+def tick_counts(watchers: list[MOOSClient], names: list[str] | None = None) -> dict[str, tuple[int, int]]:
+    """The latest (Iterations, TicksMissed) per app of every community (`<community>/<APP>`; communities
+    named alpha0, alpha1, ... unless `names` says)."""
     latest: dict[str, tuple[int, int]] = {}
     for index, watcher in enumerate(watchers):
+        community = names[index] if names else f"alpha{index}"
         for msg in watcher.fetch():
             match = re.search(r"Iterations=(\d+),TicksMissed=(\d+)", msg.string or "")
-            if match:
-                latest[f"alpha{index}/{msg.key[:-len('_STATUS')]}"] = (int(match.group(1)), int(match.group(2)))
+            if match and msg.community in ("", community):    # not another community's, shared by pShare
+                latest[f"{community}/{msg.key[:-len('_STATUS')]}"] = (int(match.group(1)), int(match.group(2)))
     return latest
 
 
@@ -152,9 +154,10 @@ async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, 
                 await asyncio.wait(tasks, timeout=5)
 
 
-async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str, str]) -> tuple[float, float]:
-    """(CPU ms per oil-spill vessel, CPU ms of the shoreside) per simulated second: missions/oilspill's
-    communities (oilspill_mission.OilspillMission, each pAntler --one-process --host-db), deployed."""
+async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str, str]) -> tuple[float, float, list[str]]:
+    """(CPU ms per oil-spill vessel, CPU ms of the shoreside) per simulated second, and the apps that fell
+    behind their AppTick: missions/oilspill's communities (oilspill_mission.OilspillMission, each pAntler
+    --one-process --host-db), deployed."""
     from oilspill_moos.oilspill_mission import Observer, OilspillMission, wait_for
 
     with tempfile.TemporaryDirectory(prefix="vehicle_bench_oilspill_") as tmp:
@@ -162,6 +165,10 @@ async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str
         with mission:
             observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
             task = asyncio.create_task(observer.client.run())
+            watchers = [MOOSClient("uBenchWatch", port=c.moos_port, time_warp=warp) for c in mission.communities]
+            for watcher in watchers:
+                watcher.register_wildcard("*_STATUS")
+            tasks = [task, *(asyncio.create_task(w.run()) for w in watchers)]
             try:
                 timeout = 60 + 5 * vessels
                 assert await observer.client.wait_connected(timeout), "the shoreside MOOSDB did not come up"
@@ -169,17 +176,23 @@ async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str
                                "every vessel's NODE_REPORT", mission)
                 await observer.deploy(mission.fleet, timeout, mission)
                 await asyncio.sleep(SETTLE)
+                names = [c.name for c in mission.communities]
+                before = tick_counts(watchers, names)
                 pids = {c.name: c.process.pid for c in mission.communities}
                 cpu0, t0 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
                 await asyncio.sleep(window)
                 cpu1, t1 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
+                await asyncio.sleep(2.5)      # one more status from every app
+                late = behind(before, tick_counts(watchers, names))
             finally:
                 observer.client.close()
-                await asyncio.wait([task], timeout=5)
+                for watcher in watchers:
+                    watcher.close()
+                await asyncio.wait(tasks, timeout=5)
     simulated = (t1 - t0) * warp
     fleet = sum(cpu1[n] - cpu0[n] for n in mission.fleet)
     shore = cpu1["shoreside"] - cpu0["shoreside"]
-    return 1000 * fleet / simulated / vessels, 1000 * shore / simulated
+    return 1000 * fleet / simulated / vessels, 1000 * shore / simulated, late
 
 
 def main() -> None:
@@ -190,18 +203,19 @@ def main() -> None:
     parser.add_argument("--one", action="store_true", help="one vessel at warp 10 only")
     parser.add_argument("--oilspill", type=int, metavar="N",
                         help="instead: N vessels of missions/oilspill (the demo's, with contact manager, brokers, "
-                             "pShare...) and their shoreside, deployed, at the first of --warps")
+                             "pShare...) and their shoreside, deployed, at each of --warps")
     parser.add_argument("--demo-ticks", action="store_true",
                         help="with --oilspill: the simulator/PID and helm at 4 and 2 Hz, as in the real-scale demo")
     parser.add_argument("--sockets", action="store_true",
                         help="the MOOSDB as a child process, apps over loopback TCP (pAntler --one-process alone)")
     args = parser.parse_args()
     if args.oilspill:
-        warp = float(args.warps.split(",")[0])
         ticks = {"SIM_TICK": "4", "HELM_TICK": "2"} if args.demo_ticks else {}
-        vessel_ms, shore_ms = asyncio.run(run_oilspill(args.oilspill, warp, args.window, ticks))
-        print(f"{args.oilspill:3d} oil-spill vessel(s) at warp {warp:g}: {vessel_ms:7.2f} ms CPU per vessel per "
-              f"simulated second; shoreside {shore_ms:7.2f} ms per simulated second", flush=True)
+        for warp in (float(w) for w in args.warps.split(",")):
+            vessel_ms, shore_ms, late = asyncio.run(run_oilspill(args.oilspill, warp, args.window, ticks))
+            print(f"{args.oilspill:3d} oil-spill vessel(s) at warp {warp:g}: {vessel_ms:7.2f} ms CPU per vessel per "
+                  f"simulated second; shoreside {shore_ms:7.2f} ms per simulated second; behind their AppTick: "
+                  f"{', '.join(late) or 'none'}", flush=True)
         return
     modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
     fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]

@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import BinaryIO
 
-from .message import MOOSMsg
+from .message import BINARY, DOUBLE, MOOSMsg
 
 RULE = "%" * 59
 DATATYPE_MARKING = "%% DATATYPE MARKING ON"
@@ -207,11 +207,12 @@ class AlogWriter:
         self._stream.write(alog_header(shown_path or str(self.path), log_start, mark_data_type))
 
     def value_text(self, msg: MOOSMsg) -> str:
-        if msg.is_binary():
-            return self._write_binary(msg.binary)
-        if msg.is_double():
+        data_type = msg.data_type
+        if data_type == DOUBLE:
             text = format_double(msg.double, self.double_precision)
             return f"D:{text}" if self.mark_data_type else text
+        if data_type == BINARY:
+            return self._write_binary(msg.binary)
         return f"S:{msg.string}" if self.mark_data_type else msg.string
 
     def _write_binary(self, payload: bytes) -> str:
@@ -221,10 +222,17 @@ class AlogWriter:
         self._blog.write(payload)
         return f"<MOOS_BINARY>File={self._blog_path.name},Offset={offset},Bytes={len(payload)}</MOOS_BINARY>"
 
-    def write(self, msg: MOOSMsg) -> None:
+    def line(self, msg: MOOSMsg) -> str:
         external = self.mark_externals and bool(msg.community) and msg.community != self.community
         source = source_field(msg, self.log_aux_src, external)
-        self._stream.write(format_alog_line(msg.time - self.log_start, msg.key, source, self.value_text(msg)))
+        return format_alog_line(msg.time - self.log_start, msg.key, source, self.value_text(msg))
+
+    def write(self, msg: MOOSMsg) -> None:
+        self._stream.write(self.line(msg))
+
+    def write_all(self, msgs: list[MOOSMsg]) -> None:
+        """Several messages in one write (pLogger's mail of an AppTick)."""
+        self._stream.write("".join(map(self.line, msgs)))
 
     def flush(self) -> None:
         self._stream.flush()

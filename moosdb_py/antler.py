@@ -342,14 +342,21 @@ class Antler:
         self.say(f"MOOSDB not accepting on {host}:{port} after {DB_READY_TIMEOUT:g} s; launching the rest anyway")
 
     async def _supervise(self) -> None:
-        """Until a stop request, or until no child is left and nothing is hosted."""
-        while not self.stopping.is_set():
-            if all(t.done() for t in self._hosted_tasks) and all(c.process.returncode is not None
-                                                                 for c in self.children) \
-                    and (self._db_task is None or self._db_task.done()):
-                self.say("every process has exited")
-                return
-            await self._pause(0.2)
+        """Until a stop request, or until no child is left and nothing is hosted; woken by those events
+        rather than polling (a wake-up costs a loaded machine ~0.1 ms of CPU)."""
+        stop = asyncio.create_task(self.stopping.wait())
+        try:
+            while not self.stopping.is_set():
+                exits = [asyncio.ensure_future(c.process.wait()) for c in self.children if c.process.returncode is None]
+                hosted = [t for t in (*self._hosted_tasks, self._db_task) if t is not None and not t.done()]
+                if not exits and not hosted:
+                    self.say("every process has exited")
+                    return
+                await asyncio.wait([stop, *exits, *hosted], return_when=asyncio.FIRST_COMPLETED)
+                for waiting in exits:
+                    waiting.cancel()
+        finally:
+            stop.cancel()
 
     async def stop(self) -> None:
         """Apps first (hosted and child processes), the MOOSDB last, so the apps' final posts still land."""

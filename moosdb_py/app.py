@@ -14,6 +14,7 @@ import resource
 import signal
 import sys
 import time as _time
+import weakref
 from pathlib import Path
 
 from .client import MOOSClient, resolve
@@ -28,6 +29,8 @@ log = logging.getLogger("moosdb_py.app")
 DEFAULT_APP_TICK = 5.0
 DEFAULT_COMMS_TICK = 5.0
 STATUS_PERIOD = 2.0
+TICK_SLACK = 0.25   # share of its AppTick period by which an iteration may run early or late (apps sharing
+                    # an event loop then wake together: each wake-up of a loaded machine costs ~0.1 ms of CPU)
 RETRY_NOTICE_PERIOD = 10.0   # seconds between "connecting ... retrying" lines while no DB answers
 USAGE_OPTIONS = """\
 Options:
@@ -75,7 +78,9 @@ class MOOSApp:
         self._mail: list[MOOSMsg] = []
         self._stop: asyncio.Event | None = None
         self._ticking: asyncio.Future | None = None   # resolved by stop(), or failed by a tick that raised
-        self._tick_timer: asyncio.TimerHandle | None = None
+        self._next_tick = self._next_status = 0.0   # loop times of the next AppTick and status post
+        self._tick_slack = 0.0
+        self._ticker: AppTicker | None = None
         self._comms: asyncio.Task | None = None
         self._stopping = False
 
@@ -154,7 +159,7 @@ class MOOSApp:
         return ",".join(fields)
 
     async def run_async(self) -> None:
-        """Run until `stop()`; several apps can share one event loop."""
+        """Run until `stop()`; several apps can share one event loop (and its `AppTicker`)."""
         self._stop = asyncio.Event()
         if self._stopping:
             self._stop.set()
@@ -174,17 +179,22 @@ class MOOSApp:
             self._ticking = loop.create_future()
             now = _time.monotonic()
             self._next_status = now
-            self._next_tick = now // self._tick_period() * self._tick_period()
+            period = self._tick_period()
+            self._next_tick = now // period * period
             self._comms = comms
             if not self._stop.is_set():
-                self._tick()
+                self._tick(now)
+                if not self._ticking.done():
+                    self._ticker = AppTicker.of(loop)
+                    self._ticker.add(self)
                 await self._ticking
             mail, self._mail = self._mail, []
             if mail:   # mail that arrived with the stop request is still handled (pLogger writes it)
                 self.on_new_mail(mail)
         finally:
-            if self._tick_timer is not None:
-                self._tick_timer.cancel()
+            if self._ticker is not None:
+                self._ticker.remove(self)
+                self._ticker = None
             self.client.close()
             try:
                 async with asyncio.timeout(2.0):
@@ -195,14 +205,12 @@ class MOOSApp:
     def _tick_period(self) -> float:
         return 1.0 / (self.app_tick * self.time_warp)
 
-    def _tick(self) -> None:
-        """One AppTick (mail, iterate, status), then a timer for the next: a plain loop callback, no task to
-        wake, the cheapest periodic work asyncio offers. What it raises ends `run_async` with it.
+    def _tick(self, now: float) -> None:
+        """One AppTick at monotonic time `now` (mail, iterate, status), run by the `AppTicker`; what it raises
+        ends `run_async` with it.
 
-        Ticks fall on multiples of the period (of the monotonic clock), so apps sharing a process wake
-        together where their periods meet (pAntler --one-process): fewer loop passes. When late, the
-        latest tick due runs at once and the whole periods before it count as missed."""
-        self._tick_timer = None
+        Ticks are due on multiples of the period (of the monotonic clock). When late, the latest
+        tick due runs at once and the whole periods before it count as missed."""
         self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: routed then)
         try:
             if self._comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
@@ -216,19 +224,17 @@ class MOOSApp:
             else:
                 self.iterate()
             self.iterations += 1
-            now = _time.monotonic()
             if now >= self._next_status:
                 self._next_status = now + STATUS_PERIOD
                 self.notify(f"{self.name.upper()}_STATUS", self.status())
             period = self._tick_period()   # AppTick may change
+            self._tick_slack = TICK_SLACK * period
             self._next_tick += period
+            now = _time.monotonic()
             if now >= self._next_tick:   # late: the latest tick due runs at once, whole periods before it missed
                 late = int((now - self._next_tick) / period)
                 self.ticks_missed += late
                 self._next_tick += late * period
-            if not self._stopping:
-                loop = asyncio.get_running_loop()
-                self._tick_timer = loop.call_at(loop.time() + self._next_tick - now, self._tick)
         except Exception as exc:
             if not self._ticking.done():
                 self._ticking.set_exception(exc)
@@ -250,9 +256,8 @@ class MOOSApp:
         self._stopping = True
         if self._stop is not None:
             self._stop.set()
-        if self._tick_timer is not None:
-            self._tick_timer.cancel()
-            self._tick_timer = None
+        if self._ticker is not None:
+            self._ticker.remove(self)
         if self._ticking is not None:
             resolve(self._ticking)
 
@@ -315,6 +320,79 @@ class MOOSApp:
         except KeyboardInterrupt:
             pass
         return 0
+
+
+class AppTicker:
+    """The AppTicks of every MOOSApp in one event loop, run from one timer (pAntler --one-process hosts
+    several apps): a wake-up runs every app whose tick is due within its slack (TICK_SLACK of its
+    period, early or late), in the order they are due, so that apps whose periods do not meet still
+    share wake-ups. Each app's ticks stay on the multiples of its period: its rate is exact, only the
+    phase of an iteration moves, by less than a quarter period."""
+
+    _of_loop: "weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, AppTicker]" = weakref.WeakKeyDictionary()
+
+    def __init__(self, loop: asyncio.AbstractEventLoop):
+        self.loop = loop
+        self.apps: list[MOOSApp] = []
+        self._timer: asyncio.TimerHandle | None = None
+        self._wake = 0.0            # when the timer is due (the loop may call it a little early)
+        self._running = False
+
+    @classmethod
+    def of(cls, loop: asyncio.AbstractEventLoop) -> "AppTicker":
+        ticker = cls._of_loop.get(loop)
+        if ticker is None:
+            ticker = cls._of_loop[loop] = cls(loop)
+        return ticker
+
+    def add(self, app: MOOSApp) -> None:
+        self.apps.append(app)
+        self._schedule()
+
+    def remove(self, app: MOOSApp) -> None:
+        if app in self.apps:
+            self.apps.remove(app)
+            self._schedule()
+
+    def _schedule(self) -> None:
+        """The timer for the next wake-up."""
+        if self._running:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        if self.apps:
+            self._wake = next_wake([(a._next_tick, a._tick_slack) for a in self.apps])
+            self._timer = self.loop.call_later(self._wake - _time.monotonic(), self._run)
+
+    def _run(self) -> None:
+        self._timer = None
+        self._running = True
+        try:
+            now = max(_time.monotonic(), self._wake)
+            due = [a for a in self.apps if a._next_tick - a._tick_slack <= now]
+            due.sort(key=_next_tick)
+            for app in due:
+                if app in self.apps:    # not stopped by an app ticked before it
+                    app._tick(now)
+                    if app._ticking.done():    # failed
+                        self.apps.remove(app)
+        finally:
+            self._running = False
+            self._schedule()
+
+
+def next_wake(ticks: list[tuple[float, float]]) -> float:
+    """When to wake for AppTicks each due at `due` give or take `slack` (pairs): as late as every tick
+    of the batch that wake-up runs allows (no tick later than its slack), as early as they are due and
+    their slack allows (on time when one tick alone is due)."""
+    close = min(due + slack for due, slack in ticks)
+    batch = [(due, slack) for due, slack in ticks if due - slack <= close]
+    return max(min(due for due, _ in batch), max(due - slack for due, slack in batch))
+
+
+def _next_tick(app: MOOSApp) -> float:
+    return app._next_tick
 
 
 def _memory_kb() -> int:

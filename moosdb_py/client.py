@@ -13,12 +13,13 @@ from collections.abc import Callable
 
 from . import codec
 from .message import (ASYNC_TIMING_KEY, DATA, NULL_MSG, POISON, REGISTER, SERVER_REQUEST, SERVER_REQUEST_ID,
-                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg, moos_time)
+                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg)
 
 log = logging.getLogger("moosdb_py.client")
 
 OUTBOX_LIMIT = 65536        # unsent messages kept; beyond it the oldest half goes, as the C++ client does
 TIMING_PERIOD = 1.0
+KEEPALIVE_DELAY = 1.25 * TIMING_PERIOD  # in-process: a timing message alone when no AppTick sent one for this long
 HANDSHAKE_TIMEOUT = 5.0
 
 
@@ -72,7 +73,7 @@ class MOOSClient:
         self._closed_event: asyncio.Event | None = None
 
     def moos_time(self) -> float:
-        return moos_time(self.time_warp)
+        return _time.time() * self.time_warp     # message.moos_time, without a call more (apps ask each AppTick)
 
     # -- life cycle ----------------------------------------------------------------------------
     async def run(self) -> None:
@@ -181,22 +182,32 @@ class MOOSClient:
 
     async def _local_session(self, db) -> None:
         """One in-process connection (`MOOSDB.open_local`): the DB takes our batches and hands us mail as
-        MOOSMsgs; we only wake to say we are alive (a timing message a second) or to end."""
+        MOOSMsgs. A timing message goes with the first batch a second after the last one (a MOOSApp's
+        AppTick sends one then, `send_held`); a keep-alive timer, moved on by each, sends one alone only
+        when none went for KEEPALIVE_DELAY: while its app ticks, the connection wakes the loop for nothing."""
         link = db.open_local(self._hello())
+        loop = asyncio.get_running_loop()
+        keepalive = loop.call_soon(link.kick)     # the first timing message, at once
+
+        def take() -> list[MOOSMsg]:
+            nonlocal keepalive
+            sent = self._last_timing
+            msgs = self._next_batch()
+            if self._last_timing != sent:
+                keepalive.cancel()
+                keepalive = loop.call_later(KEEPALIVE_DELAY, link.kick)
+            return msgs
+
         try:
             self._welcomed(link.replies[0] if link.replies else None)
-            link.attach(self._next_batch, self._deliver_mail)
+            link.attach(take, self._deliver_mail)
             self._deliver_mail(link.replies[1:])
             self._kick, self._send_now = link.kick, link.flush
-            loop = asyncio.get_running_loop()
             while not self._closing:
-                link.kick()
                 self._wake = link.wake = wake = loop.create_future()
-                timer = loop.call_later(max(self._last_timing + TIMING_PERIOD - _time.monotonic(), 0.0), resolve, wake)
                 try:
                     await wake
                 finally:
-                    timer.cancel()
                     self._wake = link.wake = None
                 if link.error is not None:
                     raise link.error
@@ -204,6 +215,7 @@ class MOOSClient:
                     raise EOFError("DB closed the connection")
         finally:
             link.disconnect()
+            keepalive.cancel()
 
     def _wake_up(self) -> None:
         if self._wake is not None:
@@ -281,9 +293,10 @@ class MOOSClient:
         self._holding = True
 
     def send_held(self) -> None:
-        """Send what was held, at once: in-process, the DB routes it before this returns."""
+        """Send what was held, at once (in-process, the DB routes it before this returns), with a timing
+        message when one is due even if nothing was held: an app's AppTick keeps its connection alive."""
         self._holding = False
-        if self._outbox and self._send_now is not None:
+        if self._send_now is not None and (self._outbox or _time.monotonic() - self._last_timing >= TIMING_PERIOD):
             self._send_now()
 
     def _apply_subscriptions(self) -> None:

@@ -45,11 +45,17 @@ class LocalGrid:
 
     def to_local(self, lat, lon):
         """(lat, lon) degrees -> (x, y) metres; scalars or arrays of any matching shape."""
+        if type(lat) is float and type(lon) is float:     # one position (a vehicle's, each AppTick): no arrays
+            east, north = self._forward.transform(lon, lat)
+            return east - self.origin_easting, north - self.origin_northing
         east, north = self._forward.transform(np.asarray(lon, dtype=float), np.asarray(lat, dtype=float))
         return _like(lat, east - self.origin_easting), _like(lat, north - self.origin_northing)
 
     def to_latlon(self, x, y):
         """(x, y) metres -> (lat, lon) degrees; scalars or arrays of any matching shape."""
+        if type(x) is float and type(y) is float:
+            lon, lat = self._inverse.transform(x + self.origin_easting, y + self.origin_northing)
+            return lat, lon
         east = np.asarray(x, dtype=float) + self.origin_easting
         north = np.asarray(y, dtype=float) + self.origin_northing
         lon, lat = self._inverse.transform(east, north)

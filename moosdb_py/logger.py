@@ -271,23 +271,27 @@ PUBLICATIONS:
         self.notify("LOGGER_DIRECTORY", str(self.directory))
 
     def on_new_mail(self, mail) -> None:
+        logged, excluded, wanted_of = [], [], self._wanted
         for msg in mail:
-            if msg.key == CMD_VAR and msg.is_string():
+            key = msg.key
+            if key == CMD_VAR and msg.is_string():
                 self._command(msg.string)
-            if msg.key in self.monitored:
-                print(f"{self.name}: {msg.key} = {msg.value!r} (from {msg.source})", flush=True)
-            wanted = self._wanted.get(msg.key)
+            if key in self.monitored:
+                print(f"{self.name}: {key} = {msg.value!r} (from {msg.source})", flush=True)
+            wanted = wanted_of.get(key)
             if wanted is None:
-                wanted = self._wanted[msg.key] = self.settings.wanted(msg.key)
-            if wanted:
-                if self.alog is not None:
-                    self.alog.write(msg)
-                    self.lines_written += 1
-                if self.slog is not None and not msg.is_binary():
+                wanted = wanted_of[key] = self.settings.wanted(key)
+            (logged if wanted else excluded).append(msg)
+        if self.alog is not None and logged:
+            self.alog.write_all(logged)
+            self.lines_written += len(logged)
+        if self.slog is not None:
+            for msg in logged:
+                if not msg.is_binary():
                     self.slog.update(msg.key, msg.value)
-            elif self.xlog is not None:
-                self.xlog.write(msg)
-                self.excluded += 1
+        if self.xlog is not None and excluded:
+            self.xlog.write_all(excluded)
+            self.excluded += len(excluded)
 
     def _command(self, text: str) -> None:
         name, _, value = text.partition("=")

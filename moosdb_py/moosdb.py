@@ -207,8 +207,9 @@ class MOOSDB:
         self.transmit(self.core.close_all(self.now()))
 
     async def _housekeep(self) -> None:
-        """Tell the core the time a few times a second (time-outs, DB_* refresh)."""
-        period = min(self.refresh_period, 0.25)
+        """Tell the core the time (time-outs, DB_* refresh without traffic) twice a refresh period and four
+        times a client time-out: with the defaults once a second (traffic refreshes DB_* on time anyway)."""
+        period = min(self.refresh_period / 2, self.core.client_timeout / 4)
         while True:
             await asyncio.sleep(period)
             self.transmit(self.core.tick(self.now()))

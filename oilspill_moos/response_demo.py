@@ -22,6 +22,7 @@ from shapely.geometry import Polygon
 
 from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.demo import status_horizon
+from oilspill_moos.forecaster.kinds import DEFAULT_MODEL
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.messages import parse_boundary_line
 from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
@@ -291,7 +292,7 @@ def mission_defines(truth: Truth) -> dict[str, str]:
 
 
 async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle_h: float, timeout: float,
-                       weights: Path | None = None, kind: str = "ltc-fused", reach: float = REACH,
+                       weights: Path | None = None, kind: str = DEFAULT_MODEL, reach: float = REACH,
                        viewer_port: int | None = None) -> dict:
     from oilspill_moos.viewer.app import viewer_beside
 

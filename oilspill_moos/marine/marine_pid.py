@@ -270,6 +270,9 @@ PUBLICATIONS:
         self.values: dict[str, float] = {}
         self.times: dict[str, float] = {}
         self.stale_report = ""
+        self._required_inputs = frozenset(self._required())
+        self._staleness_checks = [(key, label, getattr(self.params, limit)) for key, label, limit in STALENESS_CHECKS
+                                  if key in self._required_inputs]
 
     def on_connect(self) -> None:
         for key in (*NUMERIC_INPUTS, "MOOS_MANUAL_OVERRIDE", "MOOS_MANUAL_OVERIDE", "SPEED_FACTOR"):
@@ -324,15 +327,15 @@ PUBLICATIONS:
         """(label, age) of each input older than its tardy threshold."""
         if self.params.simulation:
             return []
-        required = self._required()
-        return [(label, now - self.times[key]) for key, label, limit in STALENESS_CHECKS
-                if key in required and now - self.times[key] > getattr(self.params, limit)]
+        times = self.times
+        return [(label, now - times[key]) for key, label, limit in self._staleness_checks if now - times[key] > limit]
 
     def iterate(self) -> None:
         if self.overridden:
             return
         now = self.moos_time()
-        if any(key not in self.values for key in self._required()):
+        v = self.values
+        if not v.keys() >= self._required_inputs:
             self._post(0.0, 0.0, 0.0)
             return
         stale = self._stale(now)
@@ -344,7 +347,6 @@ PUBLICATIONS:
             self._post(0.0, 0.0, 0.0)
             return
         self.stale_report = ""
-        v = self.values
         rudder, thrust = self.engine.control(v["DESIRED_HEADING"], v["DESIRED_SPEED"], v["NAV_HEADING"],
                                              v["NAV_SPEED"], now)
         elevator = 0.0

@@ -7,6 +7,7 @@ field order and number formatting follow docs/spec/field-apps.md section 3 to th
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -358,12 +359,14 @@ SUBSCRIPTIONS:
 PUBLICATIONS:
   NODE_REPORT_LOCAL (or node_report_output), NODE_REPORT_LOCAL_FIRST (once)
   PLATFORM_REPORT_LOCAL (or plat_report_output)
+  PNODEREPORTER_PID (the process id, once at start-up: what uMemWatch measures)
 """
 
     def on_startup(self) -> None:
         params = read_params(self.config, ReporterParams.from_config)
         name = (self.mission.community if self.mission is not None else "") or "unknown"
         self.builder = NodeReportBuilder(name, params, mission_grid(self.mission))
+        self.notify("PNODEREPORTER_PID", float(os.getpid()))   # as MOOS-IvP's, for uMemWatch (sent on connecting)
 
     def on_connect(self) -> None:
         for key in REPORTER_INPUTS:

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import logging
 import math
+from bisect import bisect_right
 from dataclasses import dataclass, field, replace
 
-import numpy as np
 
 from moosdb_py.app import MOOSApp
 from moosdb_py.formats import format_number
@@ -64,9 +64,8 @@ class ThrustMap:
         table = dict(pairs or [])
         if table:
             table.setdefault(0.0, 0.0)
-        keys = sorted(table)
-        self.thrusts = np.array(keys, dtype=float)
-        self.speeds = np.array([table[k] for k in keys], dtype=float)
+        self.thrusts = tuple(sorted(table))     # tuples: one scalar a step, where numpy costs more than it does
+        self.speeds = tuple(table[k] for k in self.thrusts)
 
     @classmethod
     def parse(cls, text: str, thrust_factor: float = 20.0, reflect: bool = False) -> "ThrustMap":
@@ -89,16 +88,22 @@ class ThrustMap:
 
     @property
     def empty(self) -> bool:
-        return self.thrusts.size == 0
+        return not self.thrusts
 
     def speed(self, thrust: float) -> float:
         if self.empty:
             return thrust / self.thrust_factor if self.thrust_factor else 0.0
         if thrust < 0.0 and self.reflect:
             return -self.speed(-thrust)
-        if thrust < 0.0 and self.thrusts[0] >= 0.0:
+        thrusts, speeds = self.thrusts, self.speeds
+        if thrust < 0.0 and thrusts[0] >= 0.0:
             return 0.0
-        return float(np.interp(thrust, self.thrusts, self.speeds))
+        if thrust <= thrusts[0]:
+            return speeds[0]
+        if thrust >= thrusts[-1]:
+            return speeds[-1]
+        j = bisect_right(thrusts, thrust) - 1      # np.interp's segment and arithmetic, to the bit
+        return (speeds[j + 1] - speeds[j]) / (thrusts[j + 1] - thrusts[j]) * (thrust - thrusts[j]) + speeds[j]
 
 
 @dataclass
@@ -353,6 +358,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
         self.last_result = StepResult(0.0, self.model.state.heading)
         self.reset_count = 0
         self._drift_summary_posted: str | None = None
+        self._drift_posted: tuple[float, float] | None = None
 
     def on_connect(self) -> None:
         for key in SIM_INPUTS:
@@ -414,25 +420,28 @@ PUBLICATIONS (every second iteration, with prefix NAV):
             self._post_nav(now)
 
     def _post_nav(self, now: float) -> None:
-        s, prefix = self.model.state, self.params.prefix
-        self.notify(f"{prefix}_X", s.x, now)
-        self.notify(f"{prefix}_Y", s.y, now)
+        s, prefix, notify = self.model.state, self.params.prefix, self.notify
+        notify(prefix + "_X", s.x, now)
+        notify(prefix + "_Y", s.y, now)
         if self.grid is not None:
             lat, lon = self.grid.to_latlon(s.x, s.y)
-            self.notify(f"{prefix}_LAT", lat, now)
-            self.notify(f"{prefix}_LONG", lon, now)
-        self.notify(f"{prefix}_HEADING", s.heading, now)
-        self.notify(f"{prefix}_SPEED", min(round(s.speed, 2), self.params.max_speed), now)
-        self.notify(f"{prefix}_DEPTH", s.depth, now)
-        self.notify(f"{prefix}_HEADING_OVER_GROUND", self.last_result.heading_over_ground, now)
-        self.notify(f"{prefix}_SPEED_OVER_GROUND", self.last_result.speed_over_ground, now)
+            notify(prefix + "_LAT", lat, now)
+            notify(prefix + "_LONG", lon, now)
+        notify(prefix + "_HEADING", s.heading, now)
+        notify(prefix + "_SPEED", min(round(s.speed, 2), self.params.max_speed), now)
+        notify(prefix + "_DEPTH", s.depth, now)
+        notify(prefix + "_HEADING_OVER_GROUND", self.last_result.heading_over_ground, now)
+        notify(prefix + "_SPEED_OVER_GROUND", self.last_result.speed_over_ground, now)
         if self.water_depth > 0.0:
-            self.notify(f"{prefix}_ALTITUDE", max(0.0, self.water_depth - s.depth), now)
-        summary = (f"ang={format_number(self.model.drift_angle, 2)},mag={format_number(self.model.drift_magnitude, 2)},"
-                   f"xmag={format_number(self.model.drift_x, 2)},ymag={format_number(self.model.drift_y, 2)}")
-        if summary != self._drift_summary_posted:
-            self.notify("USM_DRIFT_SUMMARY", summary, now)
-            self._drift_summary_posted = summary
+            notify(prefix + "_ALTITUDE", max(0.0, self.water_depth - s.depth), now)
+        drift = (self.model.drift_x, self.model.drift_y)
+        if drift != self._drift_posted:     # USM_DRIFT_SUMMARY when the current changes
+            self._drift_posted = drift
+            summary = (f"ang={format_number(self.model.drift_angle, 2)},mag={format_number(self.model.drift_magnitude, 2)},"
+                       f"xmag={format_number(drift[0], 2)},ymag={format_number(drift[1], 2)}")
+            if summary != self._drift_summary_posted:
+                notify("USM_DRIFT_SUMMARY", summary, now)
+                self._drift_summary_posted = summary
 
     def status_fields(self) -> dict:
         s = self.model.state

@@ -111,3 +111,13 @@ def test_depth_and_altitude_limits(domain):
 def test_bad_parameters(domain, key, value, message):
     with pytest.raises(ValueError, match=message):
         BHV_OpRegion(domain, InfoBuffer()).apply(key, value)
+
+
+def test_the_drawn_polygon_follows_a_hints_update(make_bhv, domain):
+    """The VIEW_POLYGON text is built once and kept; an update of the hints rebuilds it."""
+    helm = helm_with(make_bhv, domain, " updates = OPR_UPDATES\n visual_hints = edge_color=red\n")
+    step(helm, 0.0, 50, 20)
+    shown = [step(helm, t, 50, 20).get("VIEW_POLYGON") for t in (1.0, 1.25)]
+    assert shown[0].endswith(",label=abe_bhv_opregion,edge_color=red") and shown[1] is None   # unchanged: not re-posted
+    helm.on_mail("OPR_UPDATES", "visual_hints=edge_color=green", 1.5)
+    assert step(helm, 1.5, 50, 20)["VIEW_POLYGON"].endswith(",label=abe_bhv_opregion,edge_color=green")

@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from behaviors.behavior import InfoBuffer
 from behaviors.bhv_waypoint import BHV_Waypoint
-from behaviors.geometry import GeometryError, parse_polygon, parse_seglist
+from behaviors.geometry import GeometryError, bearing, distance, parse_polygon, parse_seglist
 
 R = math.sqrt(0.5) * 10     # 10 m at 45 degrees: 7.0711 along each axis
 
@@ -126,3 +127,15 @@ def test_oval(text, picks):
     pts = parse_polygon(text)
     assert pts.shape == (26, 2)
     same(pts[list(picks)], list(picks.values()))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(-1e5, 1e5), min_size=4, max_size=4))
+def test_single_bearings_and_distances_agree_with_the_array_forms(xy):
+    """Four floats take plain math, arrays numpy: the same bearing and distance to rounding."""
+    x1, y1, x2, y2 = xy
+    as_arrays = [np.array([v]) for v in xy]
+    assert distance(x1, y1, x2, y2) == pytest.approx(float(distance(*as_arrays)[0]), rel=1e-12, abs=1e-9)
+    assert 0.0 <= bearing(x1, y1, x2, y2) <= 360.0
+    turn = (bearing(x1, y1, x2, y2) - float(bearing(*as_arrays)[0]) + 180.0) % 360.0 - 180.0
+    assert turn == pytest.approx(0.0, abs=1e-9)

@@ -1,3 +1,5 @@
+import functools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -125,3 +127,47 @@ def test_separable_functions_decide_as_their_full_grids(specs):
         separable.append(f)
         dense.append(IvPFunction(("course", "speed"), f.values.copy(), pwt))
     assert solve(dom, separable) == solve(dom, dense)
+
+
+utilities = st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=1, max_size=12).map(np.array)
+
+
+@settings(max_examples=80, deadline=None)
+@given(utilities, utilities, st.floats(0, 100), st.floats(1, 300),
+       st.sampled_from([None, np.nan, np.inf, -np.inf]), st.integers(0, 11))
+def test_coupled_bounds_are_the_parts_ranges(course, speed, ratio, pwt, special, at):
+    """couple's (min, max) per part, derived without scanning, are exactly what np.min/np.max measure
+    (NaN and infinities included), and the solver decides the same with them as with measured ranges."""
+    if special is not None:
+        course = course.copy()
+        course[at % len(course)] = special
+    dom = IvPDomain(vars=[parse_domain_line(f"course:0:{len(course) - 1}:{len(course)}"),
+                          parse_domain_line(f"speed:0:{len(speed) - 1}:{len(speed)}")])
+    with np.errstate(invalid="ignore", over="ignore"):     # NaN and infinities are the point here
+        f = couple(IvPFunction(("course",), course), IvPFunction(("speed",), speed), ratio, 100 - ratio, pwt)
+    measured = tuple((float(np.min(p)), float(np.max(p))) for p in f.parts)
+    assert np.array_equal(f.bounds, measured, equal_nan=True)
+    assert f.has_nan() == bool(np.isnan(f.values).any())
+    if not f.has_nan():
+        assert solve(dom, [f]) == solve(dom, [IvPFunction(f.vars, pwt=f.pwt, parts=f.parts)])
+
+
+# Summits on the domain and a base: no single peak is flat, so none has a summit insisted on its own.
+peaks = st.builds(PeakComponent, st.floats(0, 359), st.floats(0, 60), st.floats(1, 200), st.floats(0, 30),
+                  st.sampled_from([0.0, 10.0]), st.sampled_from([50.0, 100.0]))
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(peaks, min_size=1, max_size=4), st.booleans(), st.booleans())
+def test_combined_peak_is_its_components_combined(components, value_wrap, max_mode):
+    """The components' distances are computed together; the result is exactly the components'
+    single peaks combined by max or sum (summit insist aside: a flat result gets a summit)."""
+    course = parse_domain_line("course:0:359:360")
+    singles = [zaic_peak(course, [c], value_wrap=value_wrap) for c in components]
+    combined = zaic_peak(course, components, value_wrap=value_wrap, max_mode=max_mode)
+    expected = functools.reduce(np.maximum if max_mode else np.add, singles)
+    if expected.min() == expected.max() and any(c.minutil == expected[0] for c in components):
+        first = next(c for c in components if c.minutil == expected[0])
+        assert combined.max() == first.maxutil and combined[course.index_of(first.summit)] == first.maxutil
+    else:
+        assert np.array_equal(combined, expected)

@@ -185,6 +185,27 @@ def test_station_keep_speed_profile_and_hibernation(domain):
         sk.apply("station_pt", "nowhere")
 
 
+def test_station_keep_rings_follow_their_settings(domain):
+    """The ring texts are kept between iterations and rebuilt when the radius, hints or station change."""
+    info = InfoBuffer()
+    sk = BHV_StationKeep(domain, info, "abe")
+    sk.apply("station_pt", "0,0")
+    at(info, 30, 0)
+
+    def rings(now):
+        sk.now, sk.posts = now, []
+        sk.on_run_state()
+        return {p.key: p.value for p in sk.posts if p.var == "VIEW_POLYGON"}
+
+    first = rings(0.0)
+    assert rings(1.0) == first and "radius=15.0" in first["out"]
+    sk.apply("outer_radius", "25")
+    sk.apply("visual_hints", "edge_color=pink")
+    assert "radius=25.0" in rings(2.0)["out"] and "edge_color=pink" in rings(3.0)["in"]
+    sk.apply("station_pt", "10,5")
+    assert "x=10.0,y=5.0" in rings(4.0)["out"]
+
+
 def test_greedy_tour_from_ownship(domain):
     w, info = waypoint(domain)
     at(info, 100, 0)

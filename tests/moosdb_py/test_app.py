@@ -5,10 +5,13 @@ import asyncio
 import time
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from helpers import async_wait_until
-from moosdb_py.app import MOOSApp
+from moosdb_py.app import AppTicker, MOOSApp, next_wake
 from moosdb_py.client import MOOSClient
+from moosdb_py.moosdb import MOOSDB
 
 
 class Counter(MOOSApp):
@@ -175,4 +178,49 @@ def test_every_apptick_period_is_either_iterated_or_counted_missed(moosdb_server
         app.stop()
         await asyncio.wait_for(running, 5)
         assert app.ticks_missed > missed and abs(accounted - periods) <= 2.5
+    asyncio.run(scenario())
+
+
+TICKS = st.lists(st.tuples(st.floats(0, 100), st.floats(0, 5)), min_size=1, max_size=8)
+
+
+@given(TICKS)
+def test_a_wake_up_is_due_and_late_for_no_tick_beyond_its_slack(ticks):
+    wake = next_wake(ticks)
+    assert wake >= min(due for due, _ in ticks)                        # not before anything is due
+    assert all(wake <= due + slack for due, slack in ticks)            # nobody later than its slack
+
+
+@given(st.floats(0, 100), st.floats(0, 5))
+def test_an_app_alone_wakes_when_its_tick_is_due(due, slack):
+    assert next_wake([(due, slack)]) == due
+
+
+def test_apps_sharing_a_loop_keep_their_rates_and_wake_together(monkeypatch):
+    """AppTicks 10 and 8 at warp 10, in one loop with their DB in-process: each app iterates at its own rate,
+    and a wake-up serves both where their ticks fall within a quarter period (TICK_SLACK): 5 for 9 ticks."""
+    wakes = []
+    run = AppTicker._run
+    monkeypatch.setattr(AppTicker, "_run", lambda self: (wakes.append(time.monotonic()), run(self)))
+
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=10)
+        await db.start()
+        apps = [Counter(name=f"counter_{tick}", port=db.port, time_warp=10) for tick in (10, 8)]
+        for app, tick in zip(apps, (10, 8)):
+            app.app_tick = tick
+            app.client.local_db = db
+        tasks = [asyncio.create_task(a.run_async()) for a in apps]
+        await async_wait_until(lambda: all(a.iterations > 3 for a in apps))
+        start, first, woken = time.monotonic(), [a.iterations + a.ticks_missed for a in apps], len(wakes)
+        await asyncio.sleep(1.0)
+        elapsed = time.monotonic() - start
+        done = [a.iterations + a.ticks_missed - n for a, n in zip(apps, first)]
+        for a in apps:
+            a.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        # periods passed (iterated or missed) per second; a loaded machine may owe a few at either reading
+        assert 85 <= done[0] / elapsed <= 108 and 68 <= done[1] / elapsed <= 86
+        assert len(wakes) - woken <= 0.62 * sum(done)
     asyncio.run(scenario())

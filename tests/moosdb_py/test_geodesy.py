@@ -78,3 +78,16 @@ def test_round_trip_local_latlon_local(lat0, lon0, x, y):
     grid = LocalGrid(lat0, lon0)
     lat, lon = grid.to_latlon(x, y)
     assert grid.to_local(lat, lon) == pytest.approx((x, y), abs=1e-4)
+
+
+@settings(max_examples=100)
+@given(x=st.floats(-5e4, 5e4), y=st.floats(-5e4, 5e4))
+def test_one_position_converts_as_an_array_of_one_does(x, y):
+    """Plain floats take pyproj's scalar call (a vehicle's position each AppTick): the same numbers, as floats."""
+    grid = LocalGrid(LAT0, LON0)
+    lat, lon = grid.to_latlon(x, y)
+    assert (lat, lon) == tuple(float(v[0]) for v in grid.to_latlon(np.array([x]), np.array([y])))
+    assert type(lat) is float and type(lon) is float
+    back = grid.to_local(lat, lon)
+    assert back == tuple(float(v[0]) for v in grid.to_local(np.array([lat]), np.array([lon])))
+    assert type(back[0]) is float and type(back[1]) is float

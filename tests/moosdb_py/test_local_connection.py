@@ -3,8 +3,15 @@ from __future__ import annotations
 
 import asyncio
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from helpers import async_wait_until
+from moosdb_py import codec
+from moosdb_py.app import MOOSApp
 from moosdb_py.client import MOOSClient
+from moosdb_py.db_core import MOOSDBCore
+from moosdb_py.message import REGISTER, STRING, WILDCARD_REGISTER, MOOSMsg
 from moosdb_py.moosdb import MOOSDB
 
 FIELDS = ("key", "msg_type", "data_type", "double", "string", "binary", "source", "source_aux", "community")
@@ -71,4 +78,82 @@ def test_a_local_client_waits_for_its_db_and_reconnects():
         client.close()
         await asyncio.wait_for(task, 5)
         db.close()
+    asyncio.run(asyncio.wait_for(scenario(), 20))
+
+
+KEYS = ("X", "Y", "WIND", "W_2")
+VALUES = st.one_of(st.floats(allow_nan=False), st.text(max_size=12), st.binary(max_size=6))
+POSTS = st.lists(st.tuples(st.sampled_from(("pub_local", "pub_tcp")), st.floats(0.0, 0.6),
+                           st.lists(st.tuples(st.sampled_from(KEYS), VALUES, st.text(max_size=3)), min_size=1, max_size=4)),
+                 min_size=1, max_size=25)
+
+
+@settings(max_examples=60, deadline=None)
+@given(posts=POSTS, intervals=st.lists(st.sampled_from((0.0, 0.0, 0.5, 1.5)), min_size=2, max_size=2))
+def test_core_gives_a_local_and_a_socket_subscriber_the_same_mail(posts, intervals):
+    """The same batches, from an in-process and a socket publisher, at the same times: the in-process
+    subscriber gets, message for message and field for field, what the socket subscriber decodes
+    (throttled registrations, a wildcard, type clashes, text outside latin-1, binary values)."""
+    core = MOOSDBCore(now=0.0, hostname="vm")
+    mail: dict[str, list[MOOSMsg]] = {"sub_local": [], "sub_tcp": [], "pub_local": [], "pub_tcp": []}
+
+    def take(outgoing):
+        for client, data, end in outgoing:
+            mail[client.handle] += data if client.local else \
+                [m for unit in codec.StreamFramer().units(data) for m in codec.decode_packet(unit)]
+
+    clients = {}
+    for name in mail:
+        hello = MOOSMsg("i", STRING, "asynchronous", string=name, time=0.0)
+        if name.endswith("local"):
+            clients[name], outgoing = core.connect_local(name, hello, 0.0)
+            take(outgoing)
+        else:
+            clients[name] = core.connect(name, "127.0.0.1:1", 0.0)
+            take(core.receive(clients[name], codec.PROTOCOL_SLOT + codec.encode_packet([hello]), 0.0))
+
+    def send(name, msgs, now):
+        if name.endswith("local"):
+            take(core.receive_local(clients[name], msgs, now))
+        else:
+            take(core.receive(clients[name], codec.encode_packet(msgs), now))
+
+    for name in ("sub_local", "sub_tcp"):
+        send(name, [MOOSMsg(REGISTER, "D", "X", intervals[0], source=name, time=0.0),
+                    MOOSMsg(REGISTER, "D", "Y", intervals[1], source=name, time=0.0),
+                    MOOSMsg(WILDCARD_REGISTER, STRING, name, string="AppPattern=*,VarPattern=W*,Interval=0",
+                            source=name, time=0.0)], 0.0)
+    now, next_id = 0.0, 0
+    for publisher, pause, batch in posts:
+        now += pause
+        msgs = []
+        for key, value, aux in batch:
+            msgs.append(MOOSMsg.notification(key, value, time=now, source=publisher, source_aux=aux, msg_id=next_id))
+            next_id += 1
+        send(publisher, msgs, now)
+    fields = [f for f in MOOSMsg.__slots__]
+    assert [[getattr(m, f) for f in fields] for m in mail["sub_local"]] == \
+        [[getattr(m, f) for f in fields] for m in mail["sub_tcp"]]
+    assert mail["sub_tcp"]        # every key is subscribed: at least the first post of each went out
+
+
+def test_idle_local_clients_stay_alive_with_timing_messages():
+    """A bare in-process client (its keep-alive timer) and an app that posts nothing (its AppTicks) both
+    send timing messages, so a DB with a 2 s client timeout keeps them."""
+    async def scenario():
+        db = MOOSDB(port=0, client_timeout=2.0)
+        await db.start()
+        bare = MOOSClient("bare", port=db.port, local_db=db)
+        app = MOOSApp(name="pIdle", port=db.port)
+        app.client.local_db = db
+        tasks = [asyncio.create_task(bare.run()), asyncio.create_task(app.run_async())]
+        await async_wait_until(lambda: {"bare", "pIdle"} <= set(db.core.clients))
+        await asyncio.sleep(3.0)
+        kept = {name: db.core.clients[name].latency[4] for name in ("bare", "pIdle") if name in db.core.clients}
+        bare.close()
+        app.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        assert set(kept) == {"bare", "pIdle"}, "dropped as silent"
+        assert kept["bare"] >= 2 and kept["pIdle"] >= 2     # timing messages the DB counted, in 3 s and more
     asyncio.run(asyncio.wait_for(scenario(), 20))

@@ -1,6 +1,7 @@
 """uSimMarine model: config parsing, thrust map, speed/heading/position arithmetic, drift."""
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -174,3 +175,18 @@ def test_step_stays_bounded(rudder, thrust, dt, heading, speed):
     assert 0 <= s.speed <= 5
     assert math.hypot(s.x, s.y) <= 5 * dt + 1e-9
     assert res.speed_over_ground == pytest.approx(math.hypot(s.x, s.y) / dt)
+
+
+@settings(max_examples=200)
+@given(pairs=st.dictionaries(st.floats(-100, 100), st.floats(0, 10), min_size=1, max_size=7),
+       thrust=st.floats(-100, 100))
+def test_thrust_map_interpolates_as_numpy_does_to_the_bit(pairs, thrust):
+    """The speed of a thrust: np.interp's value over the sorted map (plain floats, one scalar a step)."""
+    table = ThrustMap(sorted(pairs.items()))
+    table_with_zero = dict(pairs)
+    table_with_zero.setdefault(0.0, 0.0)
+    thrusts = sorted(table_with_zero)
+    expected = float(np.interp(thrust, thrusts, [table_with_zero[t] for t in thrusts]))
+    if thrust < 0.0 and thrusts[0] >= 0.0:
+        expected = 0.0
+    assert table.speed(thrust) == expected

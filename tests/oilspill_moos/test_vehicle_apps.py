@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import statistics
 
 import pytest
@@ -159,9 +160,11 @@ def test_node_reporter_reports_community_nav_and_helm_mode(moosdb_server, tmp_pa
         # the report would say NOHELM-5; the threshold is not what this test is about.
         blocks = {**BLOCKS, "pNodeReporter": BLOCKS["pNodeReporter"] + "\n  nohelm_threshold = 600"}
         reporter = NodeReporter(write_mission(tmp_path, moosdb_server.port, blocks), "pNodeReporter")
-        keys = ["NODE_REPORT_LOCAL", "NODE_REPORT_LOCAL_FIRST"]
+        keys = ["NODE_REPORT_LOCAL", "NODE_REPORT_LOCAL_FIRST", "PNODEREPORTER_PID"]
         async with running([reporter], moosdb_server.port, keys) as w:
             await async_wait_until(lambda: reporter.iterations > 2, 5)
+            await async_wait_until(lambda: latest(w, "PNODEREPORTER_PID") is not None, 5)
+            assert latest(w, "PNODEREPORTER_PID").double == os.getpid()     # what uMemWatch measures
             assert latest(w, "NODE_REPORT_LOCAL") is None  # no nav yet
             for key, value in (("NAV_X", 12.5), ("NAV_Y", -40.25), ("NAV_SPEED", 2.0), ("NAV_HEADING", 181.3),
                                ("NAV_LAT", 43.82494), ("NAV_LONG", -70.3302), ("IVPHELM_STATE", "DRIVE"),
