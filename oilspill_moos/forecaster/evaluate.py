@@ -318,8 +318,22 @@ def latency_ms(weights_dir: Path, kind: str, repeats: int = 10) -> float:
     return 1e3 * (time.process_time() - started) / repeats
 
 
+def split_line(split: dict, trained: dict, tests: int) -> str:
+    """The split the report is about: the committed set's, and, when the shipped weights record another
+    (the set grew after they were trained), theirs, so the report never claims training it did not have."""
+    line = (f"Split: {len(split.get('train', []))} training, {len(split.get('val', []))} validation (early stopping and "
+            f"calibration) and {tests} test scenarios.")
+    if trained and (set(trained.get("train", [])), set(trained.get("val", []))) != \
+            (set(split.get("train", [])), set(split.get("val", []))):
+        line += (f" The shipped weights were trained on {len(trained.get('train', []))} training and "
+                 f"{len(trained.get('val', []))} validation scenarios of an earlier, smaller set (their checkpoints "
+                 "record which); the test scenarios are the same, never trained on.")
+    return line
+
+
 def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, held: Scores, exact: Scores, calibration: dict,
-                 real_lines: list[str], timings: dict, command: str, split: dict, seed: int, example: str | None) -> str:
+                 real_lines: list[str], timings: dict, command: str, split: dict, seed: int, example: str | None,
+                 trained: dict | None = None) -> str:
     best = best_kind(given)
     learned = best_ltc(given)
     horizons = " / ".join(f"{h:g}" for h in given.horizons_h)
@@ -329,8 +343,7 @@ def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, 
           f"held-out regions and footprints drawn by the held-out method (alpha shape), {len(np.unique(given.scenario))} "
           f"scenarios, {len(given.scenario)} forecast cases per horizon, horizons {horizons} h. "
           "Cells are the mean over scenarios with a percentile bootstrap 95 % CI over scenarios.", "",
-          f"Split: {len(split.get('train', []))} training, {len(split.get('val', []))} validation (early stopping and "
-          f"calibration) and {len(np.unique(given.scenario))} test scenarios.", "",
+          split_line(split, trained, len(np.unique(given.scenario))), "",
           "## Headline", "",
           f"- Best kind on this split by mean IoU: **{best}** with forcing over the horizon, **{best_kind(held)}** "
           f"without it (the latest forcing held); the default `--model`: `{DEFAULT_MODEL}`."]
@@ -447,8 +460,9 @@ def main(argv=None, args=None) -> int:
                   ["The DWH composites are not present (`../shared/data/dwh`); pass `--dwh FILES`."])
     timings = {k: latency_ms(args.weights, k) for k in kinds}
     command = "python -m oilspill_moos.forecaster evaluate" + (" " + " ".join(argv) if argv else "")
+    trained = next((c.trained_split for c in correctors.values() if c.trained_split), {})
     best = write_report(args.report, img, args.weights, given, held, exact, calibration, real_lines, timings, command,
-                        split.ids(), args.seed, example)
+                        split.ids(), args.seed, example, trained)
     summary = {"best_kind": best, "iou": {k: given.iou[k].mean(axis=0).round(3).tolist() for k in kinds},
                "centroid_km": {k: given.centroid_km[k].mean(axis=0).round(2).tolist() for k in kinds},
                "coverage95": {k: coverage(given, k, 0.95).round(3).tolist() for k in kinds},

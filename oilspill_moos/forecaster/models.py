@@ -225,6 +225,7 @@ class Corrector:
         self.target_mean = np.asarray(extra["target_scaler"]["mean"], float)
         self.target_std = np.asarray(extra["target_scaler"]["std"], float)
         self.horizons_h = tuple(extra["horizons_h"])
+        self.trained_split = extra.get("split", {})   # the scenario ids it was trained and stopped on
 
     @classmethod
     def load(cls, path) -> "Corrector":

@@ -43,3 +43,14 @@ def test_scoring_pipeline_on_held_out_scenarios():
     assert len(lines) == 4 and lines[2].startswith("| persistence |")
     assert not math.isnan(V.paired_ci(scores.per_scenario("iou", "physics")[:, 0],
                                        scores.per_scenario("iou", "persistence")[:, 0])[0])
+
+
+def test_split_line_says_when_the_weights_were_trained_on_an_earlier_set():
+    split = {"train": ["a", "b", "c"], "val": ["d"], "test": ["t1", "t2"]}
+    assert V.split_line(split, split, 2) == ("Split: 3 training, 1 validation (early stopping and calibration) "
+                                           "and 2 test scenarios.")
+    assert V.split_line(split, {}, 2) == V.split_line(split, split, 2)
+    earlier = V.split_line(split, {"train": ["a"], "val": ["d"], "test": ["t1", "t2"]}, 2)
+    assert earlier.endswith("The shipped weights were trained on 1 training and 1 validation scenarios of an earlier, "
+                            "smaller set (their checkpoints record which); the test scenarios are the same, never "
+                            "trained on.")
