@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 from . import codec
 from .message import (ASYNC_TIMING_KEY, DATA, NULL_MSG, POISON, REGISTER, SERVER_REQUEST, SERVER_REQUEST_ID,
-                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg)
+                      STRING, TIMING, UNREGISTER, WELCOME, WILDCARD_REGISTER, MOOSMsg, moos_time)
 
 log = logging.getLogger("moosdb_py.client")
 
@@ -73,7 +73,7 @@ class MOOSClient:
         self._closed_event: asyncio.Event | None = None
 
     def moos_time(self) -> float:
-        return _time.time() * self.time_warp     # message.moos_time, without a call more (apps ask each AppTick)
+        return moos_time(self.time_warp)
 
     # -- life cycle ----------------------------------------------------------------------------
     async def run(self) -> None:

@@ -522,12 +522,10 @@ class MOOSDBCore:
     def _notify_message(self, msg: MOOSMsg, now: float) -> None:
         """`_notify` for a write that came as a message (an in-process client's, the DB's own): encoded only
         if a socket client subscribes, each in-process subscriber given its own copy."""
-        var = self.vars.get(msg.key)
-        if var is None or var.data_type != msg.data_type:    # a new variable, or a write of another type
-            var = self._written(msg.key, msg.data_type, msg.source, now)
-            if var is None:
-                return
-        var._wire, var._msg = b"", msg     # var.store(msg=msg), without the call (every in-process write)
+        var = self._written(msg.key, msg.data_type, msg.source, now)
+        if var is None:
+            return
+        var.store(msg=msg)
         var.source = msg.source
         var.written_time = now
         var.window_writes += 1
@@ -537,10 +535,7 @@ class MOOSDBCore:
                     continue
                 sub[1] = now
             if client.local:
-                if client.state != CLOSED:    # `_queue_messages` for one message
-                    client.held.append(msg.copy())
-                    client.held_count += 1
-                    self._ready[client] = None
+                self._queue_messages(client, [msg.copy()])
             else:
                 self._queue(client, var.wire, 1)
 
