@@ -28,13 +28,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from moosdb_py.app import BEHIND_SHARE, status_ticks, ticks_missed
 from moosdb_py.client import MOOSClient
 
 MISSION = Path(__file__).resolve().parents[1] / "missions" / "s1_alpha"
 BIN = Path(sys.executable).parent
 TICKS = os.sysconf("SC_CLK_TCK")
 SETTLE = 3.0          # wall seconds after deploying before the window opens
-BEHIND_SHARE = 0.02   # an app that misses more than this share of its AppTicks fell behind
 
 
 def free_port() -> int:
@@ -87,20 +87,19 @@ def tick_counts(watchers: list[MOOSClient], names: list[str] | None = None) -> d
     for index, watcher in enumerate(watchers):
         community = names[index] if names else f"alpha{index}"
         for msg in watcher.fetch():
-            match = re.search(r"Iterations=(\d+),TicksMissed=(\d+)", msg.string or "")
-            if match and msg.community in ("", community):    # not another community's, shared by pShare
-                latest[f"{community}/{msg.key[:-len('_STATUS')]}"] = (int(match.group(1)), int(match.group(2)))
+            ticks = status_ticks(msg.string or "")
+            if ticks and msg.community in ("", community):    # not another community's, shared by pShare
+                latest[f"{community}/{msg.key[:-len('_STATUS')]}"] = ticks[1:]
     return latest
 
 
 def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]) -> list[str]:
     """Apps that missed more than BEHIND_SHARE of the AppTicks due between two statuses."""
     late = []
-    for app, (iterations, missed) in sorted(after.items()):
-        iterations0, missed0 = before.get(app, (0, 0))
-        lost = missed - missed0
-        if lost > BEHIND_SHARE * (iterations - iterations0 + lost):
-            late.append(f"{app} ({lost} of {iterations - iterations0 + lost})")
+    for app, ticks in sorted(after.items()):
+        missed, due = ticks_missed(before.get(app, (0, 0)), ticks)
+        if missed > BEHIND_SHARE * due:
+            late.append(f"{app} ({missed} of {due})")
     return late
 
 

@@ -10,6 +10,7 @@ import asyncio
 import inspect
 import logging
 import os
+import re
 import resource
 import signal
 import sys
@@ -32,6 +33,8 @@ STATUS_PERIOD = 2.0
 TICK_SLACK = 0.25   # share of its AppTick period by which an iteration may run early or late (apps sharing
                     # an event loop then wake together: each wake-up of a loaded machine costs ~0.1 ms of CPU)
 RETRY_NOTICE_PERIOD = 10.0   # seconds between "connecting ... retrying" lines while no DB answers
+BEHIND_SHARE = 0.02   # an app that missed more than this share of the AppTicks due fell behind its AppTick
+_STATUS_TICKS = re.compile(r"MOOSName=([^,]*),Iterations=(\d+),TicksMissed=(\d+)")
 USAGE_OPTIONS = """\
 Options:
   --moos_file=FILE                 mission file (instead of the first positional argument)
@@ -380,6 +383,19 @@ class AppTicker:
         finally:
             self._running = False
             self._schedule()
+
+
+def status_ticks(status: str) -> tuple[str, int, int] | None:
+    """(MOOSName, Iterations, TicksMissed) of a <NAME>_STATUS value (`MOOSApp.status`); None without them."""
+    match = _STATUS_TICKS.search(status)
+    return (match.group(1), int(match.group(2)), int(match.group(3))) if match else None
+
+
+def ticks_missed(before: tuple[int, int], after: tuple[int, int]) -> tuple[int, int]:
+    """(AppTicks missed, AppTicks due) between two (Iterations, TicksMissed) of one app; it fell behind when
+    missed exceeds BEHIND_SHARE of due."""
+    missed = after[1] - before[1]
+    return missed, after[0] - before[0] + missed
 
 
 def next_wake(ticks: list[tuple[float, float]]) -> float:

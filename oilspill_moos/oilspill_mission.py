@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from moosdb_py.app import BEHIND_SHARE, status_ticks, ticks_missed
 from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
 from moosdb_py.ports import free_port
@@ -250,6 +251,48 @@ class Observer:
             self.client.notify("MOOS_MANUAL_OVERRIDE_ALL", "false")
             await wait_for(lambda: self.deployed() >= set(fleet), min(1.0, max(deadline - time.monotonic(), 0.01)),
                            "every vehicle deployed", mission, quiet=time.monotonic() < deadline)
+
+
+class TickWatch:
+    """Which apps of each community fell behind their AppTick: every app's <NAME>_STATUS (its Iterations
+    and TicksMissed, posted every 2 s), read from each community's MOOSDB; counted from the first
+    status seen (so from when the watch starts, not from the launch)."""
+
+    def __init__(self, communities: list[Community], warp: float):
+        self.clients = {c.name: MOOSClient("uDemoTickWatch", port=c.moos_port, time_warp=warp,
+                                           on_mail=lambda mail, name=c.name: self.on_mail(name, mail))
+                        for c in communities}
+        self.first: dict[tuple[str, str], tuple[int, int]] = {}   # (community, MOOSName) -> (Iterations, TicksMissed)
+        self.last: dict[tuple[str, str], tuple[int, int]] = {}
+        self.tasks: list[asyncio.Task] = []
+
+    def start(self) -> None:
+        for client in self.clients.values():
+            client.on_connect = lambda client=client: client.register_wildcard("*_STATUS")
+            self.tasks.append(asyncio.create_task(client.run()))
+
+    def on_mail(self, community: str, mail) -> None:
+        for msg in mail:
+            ticks = status_ticks(msg.string) if msg.key.endswith("_STATUS") else None
+            if ticks and msg.community in ("", community):   # not another community's, shared by pShare
+                app = (community, ticks[0])
+                self.first.setdefault(app, ticks[1:])
+                self.last[app] = ticks[1:]
+
+    def behind(self) -> list[dict]:
+        """The apps that missed more than BEHIND_SHARE of their AppTicks since the first status seen."""
+        late = []
+        for (community, app), ticks in sorted(self.last.items()):
+            missed, due = ticks_missed(self.first[(community, app)], ticks)
+            if missed > BEHIND_SHARE * due:
+                late.append({"community": community, "app": app, "missed": missed, "due": due})
+        return late
+
+    async def close(self) -> None:
+        for client in self.clients.values():
+            client.close()
+        if self.tasks:
+            await asyncio.wait(self.tasks, timeout=5)
 
 
 async def wait_for(predicate, timeout: float, what: str, mission: OilspillMission | None = None,

@@ -25,7 +25,7 @@ from oilspill_moos.demo import status_horizon
 from oilspill_moos.forecaster.kinds import DEFAULT_MODEL
 from oilspill_moos.forecaster.push import BoundaryPusher
 from oilspill_moos.messages import parse_boundary_line
-from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, wait_for
+from oilspill_moos.oilspill_mission import ORIGIN, Observer, OilspillMission, TickWatch, wait_for
 from oilspill_moos.response.measures import (
     largest_revisit_gap,
     manned_at,
@@ -312,6 +312,7 @@ async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle
         observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
         run = ResponseRun(truth, observer, reach)
         client_task = asyncio.create_task(observer.client.run())
+        ticks = TickWatch(mission.communities, warp)
         sampler = None
         try:
             await observer.client.wait_connected(timeout)
@@ -320,6 +321,7 @@ async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle
             await wait_for(lambda: observer.vehicles_seen() >= set(mission.fleet), timeout,
                            "every vehicle's NODE_REPORT on the shoreside", mission)
             await observer.deploy(mission.fleet, timeout, mission)
+            ticks.start()                                 # AppTicks missed count from here
             observer.t0 = observer.client.moos_time()     # mission second 0: the truth's START_HOUR
             observer.client.notify("UFLDOILSENSOR_CMD", f"hour={truth.start_hour:g}")
             observer.note("deployed", f"{':'.join(mission.fleet)}; truth at scenario hour {truth.start_hour:g}")
@@ -338,11 +340,12 @@ async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle
                 sampler.cancel()
             observer.client.close()
             client_task.cancel()
+            await ticks.close()
     record.update(cycles=run.cycles, samples=run.samples, events=observer.events,
                   wall_s=round(time.monotonic() - started, 1),
                   tracks={n: [[round(t - observer.t0, 1), round(x), round(y)] for t, x, y in track[::10]]
                           for n, track in observer.tracks.items()},
-                  node_report_rate=report_rates(observer))
+                  node_report_rate=report_rates(observer), behind=ticks.behind())
     return record
 
 
@@ -382,4 +385,14 @@ def summary_lines(record: dict) -> list[str]:
     if rates:
         lines.append(f"NODE_REPORTs per mission second: {min(rates.values()):.2f}-{max(rates.values()):.2f} "
                      "(2 expected: below means a community fell behind the warp)")
+    if "behind" in record:
+        lines.append(behind_line(record["behind"]))
     return lines
+
+
+def behind_line(behind: list[dict]) -> str:
+    """The apps that fell behind their AppTick (TickWatch.behind), by community."""
+    apps: dict[str, list[str]] = {}
+    for b in behind:
+        apps.setdefault(b["community"], []).append(f"{b['app']} ({100 * b['missed'] / b['due']:.0f} % ticks missed)")
+    return "apps behind their AppTick: " + ("; ".join(f"{c}: {', '.join(a)}" for c, a in apps.items()) or "none")

@@ -13,7 +13,9 @@ import pytest
 
 from helpers import wait_until
 from moosdb_py.alog import read_alog
-from oilspill_moos.oilspill_mission import OilspillMission, Observer
+from moosdb_py.app import MOOSApp
+from moosdb_py.message import MOOSMsg
+from oilspill_moos.oilspill_mission import Community, OilspillMission, Observer, TickWatch
 from oilspill_moos.forecaster.push import push_lines
 from oilspill_moos.messages import parse_polygon_spec
 from oilspill_moos.response.path_assign import OIL_PATH, STARTING_POSITION
@@ -143,3 +145,25 @@ def test_comms_watchdog_returns_or_holds_when_the_heartbeat_stops(tmp_path):
         v.run(25)  # silence for longer than COMMS_TIMEOUT
         assert v.last("COMMS_LOST") == "true"
         assert v.last("MODE") == mode, action
+
+
+def _status(name: str, iterations: int, missed: int, community: str = "") -> MOOSMsg:
+    """The <NAME>_STATUS an app with these counts posts (MOOSApp.status itself)."""
+    app = MOOSApp(name=name)
+    app.iterations, app.ticks_missed = iterations, missed
+    msg = MOOSMsg.notification(f"{name.upper()}_STATUS", app.status(), time=0.0, source=name)
+    msg.community = community
+    return msg
+
+
+def test_the_tick_watch_names_apps_that_missed_over_2_percent_of_their_appticks_since_it_started():
+    watch = TickWatch([Community("abe", 1, {}), Community("shoreside", 2, {})], 10.0)
+    watch.on_mail("abe", [_status("pLogger", 50, 40), _status("pHelmIvP", 50, 0), _status("uSimMarine", 50, 0)])
+    watch.on_mail("shoreside", [_status("pShare", 10, 0), _status("pHelmIvP", 60, 9, community="abe")])
+    assert watch.behind() == []     # 40 ticks missed before the first status seen: the launch, not counted
+    watch.on_mail("abe", [_status("pLogger", 142, 48), _status("pHelmIvP", 148, 2), _status("uSimMarine", 150, 3)])
+    watch.on_mail("shoreside", [_status("pShare", 110, 2), _status("pHelmIvP", 60, 90, community="abe")])
+    # pLogger: 8 of 100 due; pHelmIvP 2 of 100 and pShare 2 of 102 (not over 2 %); uSimMarine 3 of 103; the
+    # shoreside's copy of abe's helm status (pShare) is abe's, not the shoreside's
+    assert watch.behind() == [{"community": "abe", "app": "pLogger", "missed": 8, "due": 100},
+                              {"community": "abe", "app": "uSimMarine", "missed": 3, "due": 103}]

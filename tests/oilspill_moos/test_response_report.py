@@ -2,6 +2,7 @@
 legends, no two labels on top of each other, and the page opened in a real browser with every image
 loaded."""
 import asyncio
+import html
 
 import numpy as np
 import pytest
@@ -89,6 +90,20 @@ def test_the_page_shows_the_summary_the_table_and_every_figure(tmp_path):
     assert "every arc manned 1500 s (within the bound 1700 s)" in text
     assert summary_lines(record)[1].startswith("cycle 1: push -> every arc manned 1500 s")
     assert (tmp_path / "report.json").exists()
+
+
+def test_the_summary_and_the_page_say_which_apps_fell_behind_their_apptick(tmp_path):
+    record = hand_built_record()
+    assert not any("AppTick" in line for line in summary_lines(record))    # a record from before the watch
+    record["behind"] = []
+    assert summary_lines(record)[-1] == "apps behind their AppTick: none"
+    record["behind"] = [{"community": "cal", "app": "pLogger", "missed": 8, "due": 100},
+                        {"community": "cal", "app": "uSimMarine", "missed": 30, "due": 1000},
+                        {"community": "deb", "app": "pHelmIvP", "missed": 5, "due": 50}]
+    line = ("apps behind their AppTick: cal: pLogger (8 % ticks missed), uSimMarine (3 % ticks missed); "
+            "deb: pHelmIvP (10 % ticks missed)")
+    assert summary_lines(record)[-1] == line
+    assert f"<li>{html.escape(line)}</li>" in write_response_report(tmp_path, record).read_text()
 
 
 @pytest.mark.skipif(find_chromium() is None, reason="no chromium on PATH (Debian package `chromium`)")
