@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import inspect
 import logging
+import math
 import os
 import re
 import resource
@@ -366,7 +367,7 @@ class AppTicker:
             self._timer = None
         if self.apps:
             self._wake = next_wake([(a._next_tick, a._tick_slack) for a in self.apps])
-            self._timer = self.loop.call_later(self._wake - _time.monotonic(), self._run)
+            self._timer = self.loop.call_at(self._wake, self._run)    # asyncio's clock is time.monotonic
 
     def _run(self) -> None:
         self._timer = None
@@ -402,9 +403,18 @@ def next_wake(ticks: list[tuple[float, float]]) -> float:
     """When to wake for AppTicks each due at `due` give or take `slack` (pairs): as late as every tick
     of the batch that wake-up runs allows (no tick later than its slack), as early as they are due and
     their slack allows (on time when one tick alone is due)."""
-    close = min(due + slack for due, slack in ticks)
-    batch = [(due, slack) for due, slack in ticks if due - slack <= close]
-    return max(min(due for due, _ in batch), max(due - slack for due, slack in batch))
+    close = math.inf
+    for due, slack in ticks:            # loops, not comprehensions: this runs at every wake-up
+        if due + slack < close:
+            close = due + slack
+    first_due, last_start = math.inf, -math.inf
+    for due, slack in ticks:
+        if due - slack <= close:        # in the batch
+            if due < first_due:
+                first_due = due
+            if due - slack > last_start:
+                last_start = due - slack
+    return max(first_due, last_start)
 
 
 def _next_tick(app: MOOSApp) -> float:

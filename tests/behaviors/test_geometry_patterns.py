@@ -10,7 +10,7 @@ from hypothesis import given, settings, strategies as st
 
 from behaviors.behavior import InfoBuffer
 from behaviors.bhv_waypoint import BHV_Waypoint
-from behaviors.geometry import GeometryError, bearing, distance, parse_polygon, parse_seglist
+from behaviors.geometry import GeometryError, are_floats, bearing, distance, parse_polygon, parse_seglist
 
 R = math.sqrt(0.5) * 10     # 10 m at 45 degrees: 7.0711 along each axis
 
@@ -139,3 +139,27 @@ def test_single_bearings_and_distances_agree_with_the_array_forms(xy):
     assert 0.0 <= bearing(x1, y1, x2, y2) <= 360.0
     turn = (bearing(x1, y1, x2, y2) - float(bearing(*as_arrays)[0]) + 180.0) % 360.0 - 180.0
     assert turn == pytest.approx(0.0, abs=1e-9)
+
+
+SCALARS = st.one_of(st.floats(allow_nan=False), st.integers(-5, 5), st.booleans(), st.text(max_size=3),
+                    st.floats(-1e3, 1e3).map(np.float64), st.just(np.array([1.0, 2.0])))
+
+
+@given(st.lists(SCALARS, max_size=5))
+def test_are_floats_is_every_value_a_float(values):
+    assert are_floats(*values) == all(isinstance(v, float) for v in values)
+
+
+@given(st.lists(st.tuples(st.sampled_from(("A", "B")), SCALARS.filter(lambda v: not isinstance(v, np.ndarray))),
+                max_size=12))
+def test_the_info_buffer_keeps_numbers_as_floats_and_each_variable_its_first_type(writes):
+    """InfoBuffer.set as first written: ints and numpy floats stored as floats, bools and text as they
+    are, and a write of the other kind (number vs text) refused."""
+    info, kept = InfoBuffer(), {}
+    for t, (var, value) in enumerate(writes):
+        expected = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+        accepted = var not in kept or isinstance(kept[var], float) == isinstance(expected, float)
+        assert info.set(var, value, float(t)) == accepted
+        if accepted:
+            kept[var] = expected
+        assert info.get(var) == kept.get(var) and type(info.get(var)) is type(kept.get(var))
