@@ -23,7 +23,6 @@ from typing import BinaryIO
 from .message import BINARY, DOUBLE, MOOSMsg
 
 RULE = "%" * 59
-COLUMNS_KEPT = 4096   # AlogWriter's kept VAR/source columns
 DATATYPE_MARKING = "%% DATATYPE MARKING ON"
 
 
@@ -68,13 +67,8 @@ def source_field(msg: MOOSMsg, log_aux_src: bool = False, external_community: bo
     return text
 
 
-def alog_columns(key: str, source: str) -> str:
-    """The VAR and source columns of a line, with the blanks around them."""
-    return f" {key:<20} {source:<15} "
-
-
 def format_alog_line(rel_time: float, key: str, source: str, value: str) -> str:
-    return f"{rel_time:<15.5f}{alog_columns(key, source)}{value} \n"
+    return f"{rel_time:<15.5f} {key:<20} {source:<15} {value} \n"
 
 
 @dataclass(frozen=True)
@@ -209,7 +203,6 @@ class AlogWriter:
         self.mark_data_type = mark_data_type
         self._blog_path = self.path.with_suffix(".blog")
         self._blog: BinaryIO | None = None
-        self._columns: dict[tuple[str, str, str, str], str] = {}
         self._stream = open(self.path, "w", encoding="latin-1", newline="\n")
         self._stream.write(alog_header(shown_path or str(self.path), log_start, mark_data_type))
 
@@ -230,16 +223,9 @@ class AlogWriter:
         return f"<MOOS_BINARY>File={self._blog_path.name},Offset={offset},Bytes={len(payload)}</MOOS_BINARY>"
 
     def line(self, msg: MOOSMsg) -> str:
-        """`format_alog_line` of the message; its VAR and source columns are kept per writer (key, source,
-        aux, community): a vessel's pLogger writes the same few hundred of them a hundred times a second."""
-        ident = (msg.key, msg.source, msg.source_aux, msg.community)
-        columns = self._columns.get(ident)
-        if columns is None:
-            if len(self._columns) >= COLUMNS_KEPT:    # e.g. the helm's aux names its iteration: not worth keeping
-                self._columns.clear()
-            external = self.mark_externals and bool(msg.community) and msg.community != self.community
-            columns = self._columns[ident] = alog_columns(msg.key, source_field(msg, self.log_aux_src, external))
-        return f"{msg.time - self.log_start:<15.5f}{columns}{self.value_text(msg)} \n"
+        external = self.mark_externals and bool(msg.community) and msg.community != self.community
+        source = source_field(msg, self.log_aux_src, external)
+        return format_alog_line(msg.time - self.log_start, msg.key, source, self.value_text(msg))
 
     def write(self, msg: MOOSMsg) -> None:
         self._stream.write(self.line(msg))

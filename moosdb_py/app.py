@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import inspect
 import logging
-import math
 import os
 import re
 import resource
@@ -403,18 +402,9 @@ def next_wake(ticks: list[tuple[float, float]]) -> float:
     """When to wake for AppTicks each due at `due` give or take `slack` (pairs): as late as every tick
     of the batch that wake-up runs allows (no tick later than its slack), as early as they are due and
     their slack allows (on time when one tick alone is due)."""
-    close = math.inf
-    for due, slack in ticks:            # loops, not comprehensions: this runs at every wake-up
-        if due + slack < close:
-            close = due + slack
-    first_due, last_start = math.inf, -math.inf
-    for due, slack in ticks:
-        if due - slack <= close:        # in the batch
-            if due < first_due:
-                first_due = due
-            if due - slack > last_start:
-                last_start = due - slack
-    return max(first_due, last_start)
+    close = min(due + slack for due, slack in ticks)
+    batch = [(due, slack) for due, slack in ticks if due - slack <= close]
+    return max(min(due for due, _ in batch), max(due - slack for due, slack in batch))
 
 
 def _next_tick(app: MOOSApp) -> float:

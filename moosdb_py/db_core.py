@@ -213,14 +213,13 @@ class MOOSDBCore:
             head.append(timing)
         replies: list[MOOSMsg] = []
         community = self.community
-        published = client.published
         for msg in msgs[first:] if first else msgs:
             mtype = msg.msg_type
             if mtype == NOTIFY:
                 codec.as_on_the_wire(msg)
                 if not msg.community:
                     msg.community = community
-                published.add(msg.key)
+                client.published.add(msg.key)
                 self._notify_message(msg, now)
             elif mtype != COMMAND and mtype != NULL_MSG:
                 self._request(client, msg, replies, now)
@@ -522,29 +521,23 @@ class MOOSDBCore:
 
     def _notify_message(self, msg: MOOSMsg, now: float) -> None:
         """`_notify` for a write that came as a message (an in-process client's, the DB's own): encoded only
-        if a socket client subscribes, each in-process subscriber given its own copy (queued here: this runs
-        for every post of every hosted app)."""
-        var = self.vars.get(msg.key)
-        if var is None or var.data_type != msg.data_type:   # a new variable, or a type clash: `_written` says
-            var = self._written(msg.key, msg.data_type, msg.source, now)
-            if var is None:
-                return
+        if a socket client subscribes, each in-process subscriber given its own copy."""
+        var = self._written(msg.key, msg.data_type, msg.source, now)
+        if var is None:
+            return
         var.store(msg=msg)
         var.source = msg.source
         var.written_time = now
         var.window_writes += 1
-        ready = self._ready
         for client, sub in var.subscribers.items():
             if sub[0] > 0.0:
                 if now - sub[1] < sub[0]:
                     continue
                 sub[1] = now
-            if not client.local:
+            if client.local:
+                self._queue_messages(client, [msg.copy()])
+            else:
                 self._queue(client, var.wire, 1)
-            elif client.state != CLOSED:
-                client.held.append(msg.copy())
-                client.held_count += 1
-                ready[client] = None
 
     def _post(self, key: str, value: float | str, now: float) -> None:
         """A notify by the DB itself (its DB_* variables)."""

@@ -4,9 +4,8 @@ from datetime import datetime
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from moosdb_py import alog
 from moosdb_py.alog import (AlogFormatError, AlogWriter, alog_header, format_alog_line, format_double,
-                            log_root_name, parse_alog_line, read_alog, source_field)
+                            log_root_name, parse_alog_line, read_alog)
 from moosdb_py.message import MOOSMsg
 
 START = 1708009923.123456
@@ -122,35 +121,6 @@ def test_round_trip_property(key, source, aux, value, offset):
         assert entry.value == pytest.approx(value, abs=1e-5)
     else:
         assert entry.value == value
-
-
-LOGGED = st.lists(st.tuples(st.sampled_from(("NAV_X", "WPT_STAT", "A_VERY_LONG_VARIABLE_NAME_INDEED")),
-                            st.sampled_from(("uSimMarineV22", "pHelmIvP", "p")), st.sampled_from(("", "12:waypt", "x")),
-                            st.sampled_from(("", "alpha", "shoreside")),
-                            st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.text(max_size=8)),
-                            st.floats(0, 1e5)), min_size=1, max_size=30)
-
-
-@settings(max_examples=60, deadline=None)
-@given(logged=LOGGED, flags=st.tuples(st.booleans(), st.booleans(), st.booleans()), kept=st.sampled_from((1, 3, 4096)))
-def test_writer_lines_are_the_layout_of_each_message(tmp_path_factory, logged, flags, kept):
-    """AlogWriter keeps each (key, source, aux, community)'s columns: its lines stay format_alog_line's, through
-    repeats and with the kept columns cleared (a small COLUMNS_KEPT)."""
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(alog, "COLUMNS_KEPT", kept)
-        _check_writer_lines(tmp_path_factory.mktemp("alog") / "x.alog", logged, *flags)
-
-
-def _check_writer_lines(path, logged, aux, externals, marked):
-    writer = AlogWriter(path, START, log_aux_src=aux, mark_externals=externals,
-                        community="alpha", mark_data_type=marked)
-    for key, source, source_aux, community, value, offset in logged:
-        msg = MOOSMsg.notification(key, value, time=START + offset, source=source, source_aux=source_aux)
-        msg.community = community
-        external = externals and bool(community) and community != "alpha"
-        assert writer.line(msg) == format_alog_line(offset + START - START, key, source_field(msg, aux, external),
-                                                    writer.value_text(msg))
-    writer.close()
 
 
 def test_multi_line_values_read_back_whole(tmp_path):

@@ -191,15 +191,6 @@ def test_a_wake_up_is_due_and_late_for_no_tick_beyond_its_slack(ticks):
     assert all(wake <= due + slack for due, slack in ticks)            # nobody later than its slack
 
 
-@given(st.lists(st.tuples(st.floats(-1e9, 1e9), st.floats(0, 10)), min_size=1, max_size=8))
-def test_the_wake_up_is_the_batch_formula_exactly(ticks):
-    """next_wake in loops gives, bit for bit, the formula it was first written as: as late as the earliest
-    deadline (due + slack) allows for the batch of ticks startable by then, as early as they are due."""
-    close = min(due + slack for due, slack in ticks)
-    batch = [(due, slack) for due, slack in ticks if due - slack <= close]
-    assert next_wake(ticks) == max(min(due for due, _ in batch), max(due - slack for due, slack in batch))
-
-
 @given(st.floats(0, 100), st.floats(0, 5))
 def test_an_app_alone_wakes_when_its_tick_is_due(due, slack):
     assert next_wake([(due, slack)]) == due
