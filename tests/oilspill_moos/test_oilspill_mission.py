@@ -107,6 +107,28 @@ def test_vehicle_killed_in_oil_path_is_dropped_reshared_and_rejoins(running):
                timeout=TIMEOUT)
 
 
+def test_the_tick_watch_reads_the_app_statuses_of_every_community(running):
+    """TickWatch on the running mission (what the response demo's summary uses): every hosted app of a
+    vessel and of the shoreside, its ticks counted from the first status the watch saw."""
+    mission, _, loop = running
+    watch = TickWatch([mission.shoreside, mission.fleet["abe"]], WARP)
+    loop.call_soon_threadsafe(watch.start)
+    wanted = {("abe", "pHelmIvP"), ("abe", "pLogger"), ("abe", "pNodeReporter"), ("shoreside", "pPathAssign"),
+              ("shoreside", "pShare")}
+    try:
+        # two statuses of each (they come every 2 s): ticks counted between them
+        wait_until(lambda: all(dict(watch.last).get(app, (0, 0))[0] > dict(watch.first).get(app, (1e9, 0))[0]
+                               for app in wanted), timeout=TIMEOUT)
+        assert {c for c, _ in dict(watch.last)} == {"abe", "shoreside"}
+
+        async def behind():     # in the loop that feeds the watch
+            return watch.behind()
+        late = asyncio.run_coroutine_threadsafe(behind(), loop).result(5)
+        assert all(b["community"] in ("abe", "shoreside") and b["due"] > 0 for b in late)
+    finally:
+        asyncio.run_coroutine_threadsafe(watch.close(), loop).result(10)
+
+
 # ---- the vehicle behaviour file on the helm engine alone (no processes) ----------------------
 
 from mission_run import VehicleHelm  # noqa: E402
