@@ -1,6 +1,6 @@
 """CPU a vehicle community costs per simulated second, and the largest fleet that keeps its AppTicks.
 
-    python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one]
+    python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one] [--per-process K]
     python benchmarks/vehicle_bench.py --oilspill 8 --warps 30,40 [--demo-ticks]   # the demo's vessels and shoreside
 
 Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
@@ -12,6 +12,7 @@ machine does not inflate the figure) of every pAntler and its children, divided 
 simulated seconds (window x warp) and by the vessel count. An app fell behind when its
 `<NAME>_STATUS` shows it missed more than 2% of the AppTicks due in the window (MOOSApp counts in
 `TicksMissed` the AppTick periods that passed with no iteration). `--one` measures one vessel at warp 10 only (the quick before/after).
+`--per-process K` hosts K vessels in each pAntler (`pAntler --with`), whose apps then share wake-ups.
 """
 from __future__ import annotations
 
@@ -44,14 +45,15 @@ def free_port() -> int:
 
 
 def prepare(folder: Path, index: int, port: int, warp: float) -> Path:
-    """A copy of s1_alpha in its own folder, with its own ServerPort, Community and MOOSTimeWarp."""
+    """A copy of s1_alpha in its own folder, with its own ServerPort, Community, MOOSTimeWarp and log name."""
     folder.mkdir()
     for path in MISSION.iterdir():
         if path.suffix in (".moos", ".bhv"):
             shutil.copy(path, folder / path.name)
     target = folder / "alpha.moos"
     text = target.read_text()
-    for name, value in (("ServerPort", port), ("MOOSTimeWarp", warp), ("Community", f"alpha{index}")):
+    for name, value in (("ServerPort", port), ("MOOSTimeWarp", warp), ("Community", f"alpha{index}"),
+                        ("File", f"LOG_ALPHA{index}")):   # pLogger's: vessels hosted together share a folder
         text, count = re.subn(rf"(?m)^\s*{name}\s*=.*$", f"{name} = {value}", text)
         assert count == 1, f"{target}: expected one {name} line"
     target.write_text(text)
@@ -103,18 +105,24 @@ def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]
     return late
 
 
-async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...]) -> tuple[float, list[str]]:
-    """(CPU ms per vessel per simulated second, apps that fell behind their AppTick)."""
+async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...],
+                    per_process: int = 1) -> tuple[float, list[str]]:
+    """(CPU ms per vessel per simulated second, apps that fell behind their AppTick); `per_process` vessels
+    in each pAntler (the first's mission, `--with` the others')."""
     with tempfile.TemporaryDirectory(prefix="vehicle_bench_") as tmp:
         antlers, watchers, tasks = [], [], []
         try:
+            group: list[Path] = []
             for index in range(vessels):
                 port = free_port()
-                mission = prepare(Path(tmp) / f"v{index}", index, port, warp)
-                antlers.append(await asyncio.create_subprocess_exec(
-                    str(BIN / "pAntler"), mission.name, *modes, "--quiet", cwd=mission.parent,
-                    stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
-                    start_new_session=True))
+                group.append(prepare(Path(tmp) / f"v{index}", index, port, warp))
+                if len(group) == per_process or index == vessels - 1:
+                    others = [arg for mission in group[1:] for arg in ("--with", str(mission))]
+                    antlers.append(await asyncio.create_subprocess_exec(
+                        str(BIN / "pAntler"), group[0].name, *others, *modes, "--quiet", cwd=group[0].parent,
+                        stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
+                        start_new_session=True))
+                    group = []
                 watcher = MOOSClient("uBenchWatch", port=port, time_warp=warp)
                 watcher.register_wildcard("*_STATUS")
                 watcher.register("IVPHELM_STATE", 0.5 * warp)   # that the helm is up, not its every iteration
@@ -205,6 +213,8 @@ def main() -> None:
                              "pShare...) and their shoreside, deployed, at each of --warps")
     parser.add_argument("--demo-ticks", action="store_true",
                         help="with --oilspill: the simulator/PID and helm at 4 and 2 Hz, as in the real-scale demo")
+    parser.add_argument("--per-process", type=int, default=1, metavar="K",
+                        help="K vessels hosted in each pAntler (pAntler --with): their apps wake together")
     parser.add_argument("--sockets", action="store_true",
                         help="the MOOSDB as a child process, apps over loopback TCP (pAntler --one-process alone)")
     args = parser.parse_args()
@@ -216,17 +226,19 @@ def main() -> None:
                   f"simulated second; shoreside {shore_ms:7.2f} ms per simulated second; behind their AppTick: "
                   f"{', '.join(late) or 'none'}", flush=True)
         return
+    if args.per_process < 1 or (args.sockets and args.per_process > 1):
+        parser.error("--per-process needs K >= 1, and the hosted DB (not --sockets)")
     modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
     fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]
     kept_up: dict[float, dict[int, bool]] = {10.0: {}}
     for vessels in fleets:
-        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window, modes))
+        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window, modes, args.per_process))
         kept_up[10.0][vessels] = not behind
         print(f"{vessels:3d} vessel(s) at warp 10: {ms:7.2f} ms CPU per vessel per simulated second; "
               f"behind their AppTick: {', '.join(behind) or 'none'}", flush=True)
     if args.one:
         return
-    for warp in (float(w) for w in args.warps.split(",")):
+    for warp in (float(w) for w in args.warps.split(",") if w):    # --warps "": no search
         results = kept_up.setdefault(warp, {})
         low, high = 0, None   # largest fleet known to keep up / smallest known not to
         for vessels, ok in sorted(results.items()):
@@ -236,7 +248,7 @@ def main() -> None:
                 high = vessels
         vessels = max(1, low * 2) if high is None else (low + high) // 2
         while vessels > low and (high is None or vessels < high) and vessels <= 64:
-            _, behind = asyncio.run(run_fleet(vessels, warp, args.window, modes))
+            _, behind = asyncio.run(run_fleet(vessels, warp, args.window, modes, args.per_process))
             print(f"  warp {warp:g}, {vessels} vessel(s): {'behind: ' + ', '.join(behind) if behind else 'kept up'}",
                   flush=True)
             if behind:

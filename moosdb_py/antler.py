@@ -200,7 +200,7 @@ class Antler:
     """Starts the plan in order, echoes children's output, reports deaths, stops everything on request."""
 
     def __init__(self, mission: Mission, specs: list[LaunchSpec], *, quiet: bool = False, one_process: bool = False,
-                 host_db: bool = False, out=None):
+                 host_db: bool = False, out=None, stopping: asyncio.Event | None = None):
         self.mission = mission
         self.specs = specs
         self.quiet = quiet
@@ -211,7 +211,7 @@ class Antler:
         self.out = out or sys.stdout
         self.children: list[Child] = []
         self.hosted: list = []
-        self.stopping = asyncio.Event()
+        self.stopping = stopping or asyncio.Event()   # shared by missions hosted together (--with): they stop together
         self.failures: list[str] = []   # MOOS names that could not start or died on their own
         self._tasks: list[asyncio.Task] = []          # output watchers
         self._hosted_tasks: list[asyncio.Task] = []   # --one-process apps
@@ -410,6 +410,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="run the community's Python apps inside this process, each its own MOOS client and tick")
     p.add_argument("--host-db", action="store_true",
                    help="with --one-process: the MOOSDB too, and the hosted apps reach it in-process (no loopback sockets)")
+    p.add_argument("--with", dest="also", action="append", default=[], metavar="MISSION",
+                   help="another mission (another vessel's community) hosted in this process too, its apps waking "
+                        "with this one's (implies --host-db; repeatable; the same macros, overrides and MOOS names "
+                        "apply; the missions share the working folder, so their pLogger File names must differ)")
     p.add_argument("--quiet", "--terse", action="store_true", help="do not echo the children's output")
     p.add_argument("--example", action="store_true", help="print an example ANTLER block")
     p.add_argument("--interface", action="store_true", help="print what pAntler subscribes to and publishes")
@@ -419,7 +423,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, str]]:
     """MOOS's `--Name=value` global overrides, apart from pAntler's own options (anywhere on the line)."""
-    own = {"nsplug", "one-process", "host-db", "quiet", "terse", "example", "interface", "help", "version"}
+    own = {"nsplug", "one-process", "host-db", "with", "quiet", "terse", "example", "interface", "help", "version"}
     rest, overrides = [], {}
     for arg in argv:
         match = re.fullmatch(r"--([\w-]+)=(.*)", arg)
@@ -438,21 +442,34 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not args.mission:
         _parser().error("a mission file is required")
+    host_db = args.host_db or bool(args.also)
     with tempfile.TemporaryDirectory(prefix="pAntler_") as folder:
-        try:
-            mission, child_file = expanded_mission(Path(args.mission), parse_defines(args.nsplug), overrides,
-                                                   Path(folder))
-            specs, problems = plan(mission, child_file, args.only)
-        except (MissionFileError, ValueError) as exc:
-            print(f"pAntler: {exc}; nothing started", file=sys.stderr)
-            return 1
-        for problem in [*mission.warnings, *problems]:
-            print(f"pAntler: {problem}", file=sys.stderr)
-        if not specs:
-            print("pAntler: nothing to launch", file=sys.stderr)
-            return 1
-        return asyncio.run(Antler(mission, specs, quiet=args.quiet, one_process=args.one_process or args.host_db,
-                                  host_db=args.host_db).run())
+        plans = []
+        for index, path in enumerate([args.mission, *args.also]):
+            try:
+                (Path(folder) / str(index)).mkdir()
+                mission, child_file = expanded_mission(Path(path), parse_defines(args.nsplug), overrides,
+                                                       Path(folder) / str(index))
+                specs, problems = plan(mission, child_file, args.only)
+            except (MissionFileError, ValueError) as exc:
+                print(f"pAntler: {exc}; nothing started", file=sys.stderr)
+                return 1
+            for problem in [*mission.warnings, *problems]:
+                print(f"pAntler: {problem}", file=sys.stderr)
+            if not specs:
+                print(f"pAntler: {path}: nothing to launch", file=sys.stderr)
+                return 1
+            plans.append((mission, specs))
+        return asyncio.run(run_together(plans, quiet=args.quiet, one_process=args.one_process or host_db,
+                                        host_db=host_db))
+
+
+async def run_together(plans: list[tuple[Mission, list[LaunchSpec]]], **options) -> int:
+    """Each mission's plan run by its own Antler in this event loop (so its hosted apps share one AppTicker
+    and wake together); a stop request, or one mission ending, stops them all."""
+    stopping = asyncio.Event()
+    codes = await asyncio.gather(*(Antler(m, specs, stopping=stopping, **options).run() for m, specs in plans))
+    return max(codes)
 
 
 if __name__ == "__main__":

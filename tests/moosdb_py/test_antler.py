@@ -234,6 +234,46 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
     assert (folder / f"{folder.name}._bhv").read_text() == (HELLO / "hello.bhv").read_text()
 
 
+def test_missions_hosted_together_run_in_one_process_and_stop_together(tmp_path, free_port):
+    """pAntler a.moos --with b.moos: both communities' MOOSDBs serve on their own ports and both apps tick,
+    all in pAntler's process (nothing launched); one Ctrl-C stops both."""
+    ports = [free_port(), free_port()]
+    paths = [write(tmp_path, "  Run = MOOSDB\n  Run = uLoadWatch", port=port, name=f"{name}.moos")
+             for name, port in zip("ab", ports)]
+    proc = pantler(paths[0], "--with", paths[1], "--MOOSTimeWarp=4", cwd=tmp_path)
+    output = Output(proc)
+
+    async def statuses():
+        seen = {}
+        clients = [MOOSClient(f"watch{i}", "127.0.0.1", port, time_warp=4,
+                              on_mail=lambda mail, i=i: seen.update({(i, m.key): m.string for m in mail}))
+                   for i, port in enumerate(ports)]
+        for client in clients:
+            client.register("ULOADWATCH_STATUS")
+        tasks = [asyncio.create_task(c.run()) for c in clients]
+        try:
+            await async_wait_until(lambda: {(0, "ULOADWATCH_STATUS"), (1, "ULOADWATCH_STATUS")} <= seen.keys(),
+                                   timeout=30)
+        finally:
+            for client in clients:
+                client.close()
+            await asyncio.wait(tasks, timeout=5)
+        return seen
+
+    try:
+        seen = asyncio.run(statuses())
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    output.thread.join(5)
+    assert proc.returncode == 0, output.text
+    assert all("MOOSName=uLoadWatch" in text for text in seen.values())
+    assert output.text.count("hosting uLoadWatch in-process") == 2 and "launched" not in output.text
+    assert sorted(re.findall(r"hosting MOOSDB in-process on port (\d+)", output.text)) == sorted(map(str, ports))
+
+
 @pytest.mark.parametrize("one_process", [False, True], ids=["processes", "one-process"])
 def test_an_app_with_a_bad_config_is_reported_with_its_error(tmp_path, free_port, one_process):
     path = tmp_path / "bad.moos"
