@@ -1,6 +1,6 @@
 """The forecaster on the founding OpenOil set, through the public API, as an outside evaluator would.
 
-    python benchmarks/forecaster_regime_bench.py [--kinds K,K,...] [--every N]
+    python benchmarks/forecaster_regime_bench.py [--kinds K,K,...] [--every N] [--weights DIR]
 
 That set (`forecaster/data/openoil_scenarios`, 60 scenarios) was never trained on: releases at the
 Deepwater Horizon wellhead, the paper's five regimes (initial release, steady growth, dispersal,
@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import shapely
@@ -24,6 +25,7 @@ from shapely.ops import transform
 from oilspill_moos.forecaster import dataset as D
 from oilspill_moos.forecaster.evaluate import bootstrap_ci, paired_ci
 from oilspill_moos.forecaster.operational import Forecaster
+from oilspill_moos.forecaster.train import WEIGHTS_DIR
 
 HORIZONS_H = (3, 7, 11, 15)
 DEFAULT_KINDS = ("ltc-fused", "ltc-rk4", "ltc-euler", "lstm", "persistence", "constant-velocity",
@@ -69,10 +71,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--kinds", default=",".join(DEFAULT_KINDS), help="comma-separated kinds; ltc-fused first")
     parser.add_argument("--every", type=int, default=5, help="an anchor every N observations (default 5)")
+    parser.add_argument("--weights", type=Path, default=WEIGHTS_DIR, help="weights directory (default: shipped)")
     args = parser.parse_args(argv)
     warnings.filterwarnings("ignore")
     kinds = args.kinds.split(",")
-    forecasters = {kind: Forecaster(kind=kind) for kind in kinds}
+    forecasters = {kind: Forecaster(args.weights, kind) for kind in kinds}
     scenarios = D.load_dataset(D.DEFAULT_STEM)
     per_case = {kind: {} for kind in kinds}
     for number, scenario in enumerate(scenarios, 1):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import multiprocessing
 import hashlib
 import json
 import math
@@ -28,6 +29,7 @@ import os
 import pickle
 import random
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -170,12 +172,32 @@ def scenario_examples(scenario, draw: int, params: DriftParameters, cache_dir: P
     return examples
 
 
+def worker_pool(workers: int) -> ProcessPoolExecutor:
+    """Processes for the parallel parts of training ("spawn": torch's thread pools do not survive fork)."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def mapped(function, jobs: list, workers: int):
+    """``map(function, jobs)`` in order, over ``workers`` processes when more than one."""
+    if workers <= 1 or len(jobs) <= 1:
+        yield from map(function, jobs)
+        return
+    with worker_pool(min(workers, len(jobs))) as pool:
+        yield from pool.map(function, jobs)
+
+
+def _scenario_job(job) -> list:
+    return scenario_examples(*job)
+
+
 def build_examples(scenarios, params: DriftParameters, noise_draws: int = 1, progress: bool = True,
-                   cache_dir: Path | None = None) -> Examples:
+                   cache_dir: Path | None = None, workers: int = 1) -> Examples:
     xs, dts, ys, ids = [], [], [], []
-    jobs = [(s, d) for s in scenarios for d in range(noise_draws)]
-    for s, d in tqdm(jobs, desc="examples", disable=not progress, leave=False):
-        for x, dt, y in scenario_examples(s, d, params, cache_dir):
+    jobs = [(s, d, params, cache_dir) for s in scenarios for d in range(noise_draws)]
+    results = mapped(_scenario_job, jobs, workers)
+    for (s, *_), examples in tqdm(zip(jobs, results), total=len(jobs), desc="examples", disable=not progress,
+                                  leave=False):
+        for x, dt, y in examples:
             xs.append(x), dts.append(dt), ys.append(y), ids.append(s.scenario_id)
     return Examples(np.array(xs), np.array(dts), np.array(ys), ids)
 
@@ -184,12 +206,12 @@ def build_examples(scenarios, params: DriftParameters, noise_draws: int = 1, pro
 # Fitting one model
 
 def fit(train: WindowTensors, val: WindowTensors, cfg: TrainConfig, horizons_h=F.HORIZONS_H,
-        checkpoint: Path | None = None, extra: dict | None = None, progress: bool = True):
+        checkpoint: Path | None = None, extra: dict | None = None, progress: bool = True, position: int = 0):
     """Train one model; returns (best model, history). Best = lowest validation MSE."""
     threads = torch.get_num_threads()
     torch.set_num_threads(cfg.threads)
     try:
-        return _fit(train, val, cfg, horizons_h, checkpoint, extra, progress)
+        return _fit(train, val, cfg, horizons_h, checkpoint, extra, progress, position)
     finally:
         torch.set_num_threads(threads)
 
@@ -207,7 +229,7 @@ def evaluate_loss(model: SpillForecaster, data: WindowTensors, cfg: TrainConfig,
     return {key: value / len(data) for key, value in sums.items()}
 
 
-def _fit(train, val, cfg, horizons_h, checkpoint, extra, progress):
+def _fit(train, val, cfg, horizons_h, checkpoint, extra, progress, position):
     seed_everything(cfg.seed)
     model = SpillForecaster(ModelConfig(kind=cfg.kind, n_features=train.x.shape[-1], n_targets=train.y.shape[-1],
                                         horizons_h=tuple(horizons_h), hidden=cfg.hidden, unfolds=cfg.unfolds,
@@ -216,7 +238,7 @@ def _fit(train, val, cfg, horizons_h, checkpoint, extra, progress):
     generator = torch.Generator().manual_seed(cfg.seed)
     best_state, best_score, best_epoch, history = None, float("inf"), -1, []
     started = time.perf_counter()
-    bar = tqdm(range(cfg.epochs), desc=cfg.kind, disable=not progress)
+    bar = tqdm(range(cfg.epochs), desc=cfg.kind, disable=not progress, position=position)
     for epoch in bar:
         model.train()
         order = torch.randperm(len(train), generator=generator)
@@ -245,6 +267,20 @@ def _fit(train, val, cfg, horizons_h, checkpoint, extra, progress):
     model.load_state_dict(best_state)
     model.eval()
     return model, history
+
+
+def _train_job(job) -> dict:
+    """Fit one kind (in its own process when training in parallel); its line of the training record."""
+    train_t, val_t, cfg, checkpoint, extra, progress, position = job
+    started = time.perf_counter()
+    model, history = fit(train_t, val_t, cfg, checkpoint=checkpoint, extra=extra, progress=progress,
+                         position=position)
+    best = min(history, key=lambda h: h["val"]["mse"])
+    return {"train_config": asdict(cfg), "epochs_run": len(history), "best_epoch": best["epoch"],
+            "val_at_best": best["val"], "train_loss_at_best": best["train_loss"],
+            "train_seconds": round(time.perf_counter() - started, 1),
+            "n_params": sum(p.numel() for p in model.parameters()),
+            "train_windows": len(train_t), "val_windows": len(val_t)}
 
 
 def save_checkpoint(path: Path, model: SpillForecaster, cfg: TrainConfig, history: list, extra: dict | None):
@@ -297,9 +333,11 @@ def file_sha256(path: Path) -> str:
 
 def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split_seed: int = 0, noise_draws: int = 4,
                  progress: bool = True, adaptive_fused: bool = False, examples_cache: Path | None = None,
-                 calibrate: bool = True, **overrides) -> dict:
+                 calibrate: bool = True, workers: int = 1, **overrides) -> dict:
     """Train each kind on the same examples and scalers; write ``<kind>.pt``, then calibrate every kind
-    (learned and baselines) on the validation split into ``calibration.json`` (with the training record)."""
+    (learned and baselines) on the validation split into ``calibration.json`` (with the training record).
+    Examples, kinds and calibrations are spread over ``workers`` processes (each model on one thread, so
+    the weights do not depend on ``workers``)."""
     from . import dataset as D
 
     stem = Path(dataset_stem) if dataset_stem is not None else D.GULF_STEM
@@ -307,8 +345,8 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     split = D.split_scenarios(scenarios, seed=split_seed)
     params = DriftParameters()
     started = time.perf_counter()
-    train_ex = build_examples(split.train, params, noise_draws, progress, examples_cache)
-    val_ex = build_examples(split.val, params, 2, progress, examples_cache)     # with and without forcing ahead
+    train_ex = build_examples(split.train, params, noise_draws, progress, examples_cache, workers)
+    val_ex = build_examples(split.val, params, 2, progress, examples_cache, workers)     # with and without forcing ahead
     feature_scaler = F.FeatureScaler.fit(train_ex.x.reshape(-1, train_ex.x.shape[-1]))
     mean, std = train_ex.y.mean(axis=0), np.maximum(train_ex.y.std(axis=0), 1e-6)
     extra = {"feature_scaler": feature_scaler.to_dict(), "target_scaler": {"mean": mean.tolist(), "std": std.tolist()},
@@ -323,23 +361,18 @@ def train_models(kinds, *, dataset_stem=None, out_dir: Path = WEIGHTS_DIR, split
     prep_seconds = round(time.perf_counter() - started, 1)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    jobs = [(train_t, val_t, TrainConfig(kind=kind, adaptive=adaptive_fused and kind == "ltc-fused", **overrides),
+             out_dir / f"{kind}.pt", extra, progress, n % max(workers, 1)) for n, kind in enumerate(kinds)]
     record = {}
-    for kind in kinds:
-        cfg = TrainConfig(kind=kind, adaptive=adaptive_fused and kind == "ltc-fused", **overrides)
-        t0 = time.perf_counter()
-        model, history = fit(train_t, val_t, cfg, checkpoint=out_dir / f"{kind}.pt", extra=extra, progress=progress)
-        best = min(history, key=lambda h: h["val"]["mse"])
-        record[kind] = {"train_config": asdict(cfg), "epochs_run": len(history), "best_epoch": best["epoch"],
-                        "val_at_best": best["val"], "train_loss_at_best": best["train_loss"],
-                        "train_seconds": round(time.perf_counter() - t0, 1),
-                        "n_params": sum(p.numel() for p in model.parameters()),
-                        "train_windows": len(train_t), "val_windows": len(val_t), "noise_draws": noise_draws,
-                        "example_seconds": prep_seconds, "dataset": extra["dataset"], "split_seed": split_seed}
+    for kind, result in zip(kinds, mapped(_train_job, jobs, workers)):
+        record[kind] = {**result, "noise_draws": noise_draws, "example_seconds": prep_seconds,
+                        "dataset": extra["dataset"], "split_seed": split_seed, "workers": workers}
         if progress:
-            print(f"{kind}: best epoch {best['epoch']} of {len(history)}, val MSE {best['val']['mse']:.4f}, "
-                  f"{record[kind]['train_seconds']} s -> {out_dir / (kind + '.pt')}", flush=True)
+            print(f"{kind}: best epoch {result['best_epoch']} of {result['epochs_run']}, val MSE "
+                  f"{result['val_at_best']['mse']:.4f}, {result['train_seconds']} s -> {out_dir / (kind + '.pt')}",
+                  flush=True)
     if calibrate:
-        write_calibration(out_dir, split, params, record, progress)
+        write_calibration(out_dir, split, params, record, progress, workers)
     else:
         merge_training_record(out_dir, record)
     return record
@@ -352,7 +385,19 @@ def merge_training_record(out_dir: Path, record: dict) -> None:
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
 
 
-def write_calibration(out_dir: Path, split, params: DriftParameters, record: dict, progress: bool = True) -> dict:
+def _calibration_job(job) -> tuple[list, int]:
+    """(spread factors per horizon, cases) of one kind on the validation cases with forcing ahead or held."""
+    from .models import Corrector
+
+    out_dir, kind, held, scenarios, params = job
+    torch.set_num_threads(1)
+    correctors = {kind: Corrector.load(out_dir / f"{kind}.pt")} if kind in KINDS else {}
+    cases = [c for s in scenarios for c in scenario_cases(s, stride=1, held=held)]
+    return calibrate(cases, [kind], E.Settings(params), correctors)[kind], len(cases)
+
+
+def write_calibration(out_dir: Path, split, params: DriftParameters, record: dict, progress: bool = True,
+                      workers: int = 1) -> dict:
     """Calibrate every kind with weights in ``out_dir`` and every baseline on every observation of the
     validation split (never trained on: on training cases the learned kinds' errors are optimistically
     small).
@@ -360,23 +405,21 @@ def write_calibration(out_dir: Path, split, params: DriftParameters, record: dic
     The recorded split's ``test`` lists every scenario never used for training or calibration: the
     Gulf set's out-of-distribution split and the whole DWH-site set (the demos replay those)."""
     from .dataset import load_dataset
-    from .models import Corrector
 
-    correctors = {k: Corrector.load(out_dir / f"{k}.pt") for k in KINDS if (out_dir / f"{k}.pt").is_file()}
-    settings = E.Settings(params)
+    learned = [k for k in KINDS if (Path(out_dir) / f"{k}.pt").is_file()]
+    jobs = [(Path(out_dir), kind, held, split.val, params) for held in (False, True)
+            for kind in [*learned, *E.BASELINE_KINDS]]
     factors = {}
-    for held in (False, True):
-        val_cases = [c for s in split.val for c in scenario_cases(s, stride=1, held=held)]
-        for kind in tqdm([*correctors, *E.BASELINE_KINDS], desc="calibration", disable=not progress):
-            for name, value in calibrate(val_cases, [kind], settings, correctors).items():
-                factors[E.Settings.scale_key(name, forcing_ahead=not held)] = value
+    for (_, kind, held, *_), (value, cases) in tqdm(zip(jobs, mapped(_calibration_job, jobs, workers)),
+                                                   total=len(jobs), desc="calibration", disable=not progress):
+        factors[E.Settings.scale_key(kind, forcing_ahead=not held)] = value
     ids = split.ids()
     ids["test"] = ids["test"] + [s.scenario_id for s in load_dataset()]
     # re-read just before writing: another `train --model` run may share the directory
     record = {**read_calibration(out_dir).get("training", {}), **record}
     blob = {"drift": params.to_dict(), "spread_scale": factors,
-            "calibration_cases": len(val_cases),
-            "members": settings.members, "split": ids, "training": record}
+            "calibration_cases": cases,
+            "members": E.Settings(params).members, "split": ids, "training": record}
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
     return blob
 
@@ -397,7 +440,9 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     parser.add_argument("--hidden", type=int, default=TrainConfig.hidden)
     parser.add_argument("--unfolds", type=int, help="LTC sub-steps per observation (default: per solver, 2 for RK4, 4 otherwise)")
     parser.add_argument("--adaptive", action="store_true", help="adaptive step for the ltc-fused model")
-    parser.add_argument("--threads", type=int, default=TrainConfig.threads)
+    parser.add_argument("--threads", type=int, default=TrainConfig.threads, help="torch threads per model")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="processes for examples, models and calibration (default: one per core, %(default)s)")
     parser.add_argument("--max-minutes", type=float, help="wall-clock cap per model")
     parser.add_argument("--examples-cache", type=Path, help="directory of built examples, one file per scenario and "
                         "noise draw: reused when built from the same scenario, prior and features, written otherwise "
@@ -417,7 +462,7 @@ def main(argv=None, args: argparse.Namespace | None = None) -> int:
         from . import dataset as D
 
         split = D.split_scenarios(D.load_dataset(args.dataset or D.GULF_STEM), seed=args.split_seed)
-        write_calibration(Path(args.out), split, DriftParameters(), {}, progress=not args.quiet)
+        write_calibration(Path(args.out), split, DriftParameters(), {}, progress=not args.quiet, workers=args.workers)
         return 0
     kinds = args.model or list(KINDS)
     overrides = {"epochs": args.epochs, "batch_size": args.batch_size, "seed": args.seed, "hidden": args.hidden,
@@ -425,5 +470,6 @@ def main(argv=None, args: argparse.Namespace | None = None) -> int:
                  "max_seconds": None if args.max_minutes is None else 60 * args.max_minutes}
     train_models(kinds, dataset_stem=args.dataset, out_dir=args.out, split_seed=args.split_seed,
                  noise_draws=args.noise_draws, progress=not args.quiet, adaptive_fused=args.adaptive,
-                 examples_cache=args.examples_cache, calibrate=not args.no_calibration, **overrides)
+                 examples_cache=args.examples_cache, calibrate=not args.no_calibration, workers=args.workers,
+                 **overrides)
     return 0

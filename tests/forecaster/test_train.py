@@ -60,3 +60,22 @@ def test_conformal_quantile_holds_a_new_case_with_the_promised_probability():
     rng = np.random.default_rng(0)
     hits = [rng.rayleigh() <= conformal_quantile(rng.rayleigh(size=50), 0.95) for _ in range(4000)]
     assert 0.95 <= np.mean(hits) <= 0.975
+
+
+def test_examples_and_fits_over_worker_processes_equal_the_serial_ones(tmp_path):
+    """`train --workers` spreads examples and models over processes; the results must not depend on it."""
+    from oilspill_moos.forecaster import dataset as D
+    from oilspill_moos.forecaster.physics import DriftParameters
+    from oilspill_moos.forecaster.train import _train_job, build_examples, mapped
+
+    scenarios = sorted(D.load_dataset(D.GULF_STEM), key=len)[:2]
+    serial = build_examples(scenarios, DriftParameters(), 2, progress=False, workers=1)
+    parallel = build_examples(scenarios, DriftParameters(), 2, progress=False, workers=2)
+    assert len(serial.x) > 0 and serial.scenario == parallel.scenario
+    for a, b in ((serial.x, parallel.x), (serial.dt, parallel.dt), (serial.y, parallel.y)):
+        np.testing.assert_array_equal(a, b)
+    cfg = TrainConfig(kind="lstm", epochs=2, batch_size=16, hidden=8, unfolds=1, seed=3)
+    jobs = [(tiny_set(48, 0), tiny_set(16, 1), cfg, tmp_path / f"{n}.pt", None, False, 0) for n in range(2)]
+    one, two = list(mapped(_train_job, jobs, 2))
+    alone = _train_job(jobs[0])
+    assert one["val_at_best"] == two["val_at_best"] == alone["val_at_best"]
