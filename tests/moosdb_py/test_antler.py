@@ -134,6 +134,19 @@ class Output:
         return "".join(self.lines)
 
 
+def interrupted_after(proc, output: Output, scenario):
+    """What the scenario (a coroutine) returns; then Ctrl-C to pAntler and its exit awaited (killed if it hangs)."""
+    try:
+        result = asyncio.run(scenario)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    output.thread.join(5)
+    return result
+
+
 def alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -211,14 +224,7 @@ def test_hello_mission_end_to_end(tmp_path, free_port, one_process):
             watcher.close()
             await asyncio.wait([comms], timeout=5)
 
-    try:
-        shown = asyncio.run(scenario())
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    output.thread.join(5)
+    shown = interrupted_after(proc, output, scenario())
     rows = {line.split()[0]: line.split()[-1] for line in shown.splitlines()[2:]}
     assert rows == {"DEPLOY": '"true"', "DESIRED_SPEED": "1.5", "IVPHELM_STATE": '"DRIVE"'}
     pids = [int(p) for p in re.findall(r"launched \S+ \(pid (\d+)\)", output.text)]
@@ -260,14 +266,7 @@ def test_missions_hosted_together_run_in_one_process_and_stop_together(tmp_path,
             await asyncio.wait(tasks, timeout=5)
         return seen
 
-    try:
-        seen = asyncio.run(statuses())
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=20)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    output.thread.join(5)
+    seen = interrupted_after(proc, output, statuses())
     assert proc.returncode == 0, output.text
     assert all("MOOSName=uLoadWatch" in text for text in seen.values())
     assert output.text.count("hosting uLoadWatch in-process") == 2 and "launched" not in output.text
