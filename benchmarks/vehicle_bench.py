@@ -23,7 +23,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import sys
 import tempfile
 import time
@@ -31,17 +30,12 @@ from pathlib import Path
 
 from moosdb_py.app import BEHIND_SHARE, status_ticks, ticks_missed
 from moosdb_py.client import MOOSClient
+from moosdb_py.ports import free_port   # never the same port twice: vessels are prepared before their DBs bind
 
 MISSION = Path(__file__).resolve().parents[1] / "missions" / "s1_alpha"
 BIN = Path(sys.executable).parent
 TICKS = os.sysconf("SC_CLK_TCK")
 SETTLE = 3.0          # wall seconds after deploying before the window opens
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def prepare(folder: Path, index: int, port: int, warp: float) -> Path:
