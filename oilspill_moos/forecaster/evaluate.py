@@ -384,7 +384,8 @@ def write_report(out_md: Path, img_dir: Path, weights_dir: Path, given: Scores, 
            "Share of test cases whose true centroid lies within the nominal radius "
            "(r = sqrt(-2 ln(1 - p)) x `uncertainty_m`; 2.448 x at 95 %). Calibrated per kind and horizon on every observation "
            f"of the validation split ({calibration.get('calibration_cases', '?')} cases) by the split-conformal "
-           "quantile of the normalised centroid errors; the target at 95 % is 90-98 %.", "",
+           "quantile of the normalised centroid errors in each forcing family (steady, varying), the larger kept; the "
+           "target at 95 % is 90-98 %.", "",
            *reliability_table(given), ""]
     if example:
         md += ["## One case", "", f"![example]({example})", ""]

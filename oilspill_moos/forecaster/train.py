@@ -14,7 +14,7 @@ validation MSE, one CPU thread per model; ``--max-minutes`` caps each model's wa
 
 Calibration (``calibrate``): on the validation cases every kind forecasts, and per horizon its ensemble
 spread is scaled so that the nominal 95 % radius (``engine.RADIUS_95`` x ``uncertainty_m``) holds the
-true centroid in 95 % of them. The factors go to ``calibration.json`` beside the weights, with the
+true centroid in 95 % of them, in each forcing family (steady, varying) of the validation split. The factors go to ``calibration.json`` beside the weights, with the
 prior's parameters and the training record.
 """
 from __future__ import annotations
@@ -295,8 +295,11 @@ def save_checkpoint(path: Path, model: SpillForecaster, cfg: TrainConfig, histor
 # ---------------------------------------------------------------------------------------------------
 # Calibration
 
-def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F.HORIZONS_H) -> dict:
-    """kind -> [H] spread factors so that RADIUS_95 x uncertainty_m holds 95 % of ``cases``' true centroids."""
+def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F.HORIZONS_H, groups=None) -> dict:
+    """kind -> [H] spread factors so that RADIUS_95 x uncertainty_m holds 95 % of ``cases``' true centroids;
+    with ``groups`` (a label per case), 95 % of each group's: the largest of the groups' factors
+    (group-wise conformal), so a forecast is covered whichever kind of case it is."""
+    labels = np.asarray(groups if groups is not None else [""] * len(cases))
     factors = {}
     for kind in kinds:
         ratios = []
@@ -307,8 +310,15 @@ def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F
                                    correction, contours=False)
             ratios.append([np.linalg.norm(f.centroid - t.centroid) / max(f.raw_spread_m, 1e-6)
                            for f, t in zip(out, case.truth_shapes)])
-        factors[kind] = [float(conformal_quantile(r, 0.95) / E.RADIUS_95) for r in np.array(ratios).T]
+        factors[kind] = groupwise_factors(np.array(ratios), labels)
     return factors
+
+
+def groupwise_factors(ratios: np.ndarray, labels: np.ndarray, level: float = 0.95) -> list[float]:
+    """[H] factors from normalised errors [N, H] (error / raw spread): per horizon the largest over the
+    label groups of the split-conformal quantile, over ``RADIUS_95``, so that each group's cases fall
+    within RADIUS_95 x factor x spread at ``level`` or more."""
+    return [max(conformal_quantile(r[labels == g], level) / E.RADIUS_95 for g in np.unique(labels)) for r in ratios.T]
 
 
 def conformal_quantile(scores: np.ndarray, level: float) -> float:
@@ -386,14 +396,28 @@ def merge_training_record(out_dir: Path, record: dict) -> None:
 
 
 def _calibration_job(job) -> tuple[list, int]:
-    """(spread factors per horizon, cases) of one kind on the validation cases with forcing ahead or held."""
+    """(spread factors per horizon, cases) of one kind on the validation cases with forcing ahead or held,
+    calibrated per forcing family (``forcing_family``): the validation split mixes steady and varying
+    forcing, and a factor pooled over both under-covers the harder varying cases."""
     from .models import Corrector
 
     out_dir, kind, held, scenarios, params = job
     torch.set_num_threads(1)
     correctors = {kind: Corrector.load(out_dir / f"{kind}.pt")} if kind in KINDS else {}
-    cases = [c for s in scenarios for c in scenario_cases(s, stride=1, held=held)]
-    return calibrate(cases, [kind], E.Settings(params), correctors)[kind], len(cases)
+    cases, groups = [], []
+    for scenario in scenarios:
+        made = scenario_cases(scenario, stride=1, held=held)
+        cases += made
+        groups += [forcing_family(scenario)] * len(made)
+    return calibrate(cases, [kind], E.Settings(params), correctors, groups=groups)[kind], len(cases)
+
+
+def forcing_family(scenario) -> str:
+    """"steady" for a scenario of steady wind and current (``simulate.STEADY_REGIMES``), else "varying"
+    (veering or shifting wind, inertial and tidal current): the calibration groups."""
+    from .simulate import STEADY_REGIMES
+
+    return "steady" if scenario.regime in STEADY_REGIMES else "varying"
 
 
 def write_calibration(out_dir: Path, split, params: DriftParameters, record: dict, progress: bool = True,

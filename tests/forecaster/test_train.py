@@ -4,8 +4,9 @@ import pytest
 import torch
 
 from oilspill_moos.forecaster.models import load_checkpoint
+from oilspill_moos.forecaster.engine import RADIUS_95
 from oilspill_moos.forecaster.train import (SOLVER_DEFAULTS, TrainConfig, WindowTensors, conformal_quantile, fit,
-                                           forecast_loss)
+                                           forecast_loss, groupwise_factors)
 
 
 def tiny_set(n: int, seed: int) -> WindowTensors:
@@ -60,6 +61,22 @@ def test_conformal_quantile_holds_a_new_case_with_the_promised_probability():
     rng = np.random.default_rng(0)
     hits = [rng.rayleigh() <= conformal_quantile(rng.rayleigh(size=50), 0.95) for _ in range(4000)]
     assert 0.95 <= np.mean(hits) <= 0.975
+
+
+def test_groupwise_factors_cover_each_group_where_a_pooled_factor_under_covers_the_harder_one():
+    """Known answer: validation errors of an easy group (scale 1) and a hard one (scale 3). A factor
+    pooled over both covers the hard group's new cases well under 95 %; the group-wise factor (the
+    largest of the groups' conformal quantiles) covers each group at 95 % or more."""
+    rng = np.random.default_rng(1)
+    ratios = np.concatenate([rng.rayleigh(1.0, size=(200, 2)), rng.rayleigh(3.0, size=(200, 2))])
+    labels = np.array(["steady"] * 200 + ["varying"] * 200)
+    pooled = groupwise_factors(ratios, np.zeros(400))
+    grouped = groupwise_factors(ratios, labels)
+    assert grouped[0] == pytest.approx(conformal_quantile(ratios[200:, 0], 0.95) / RADIUS_95)
+    hard = rng.rayleigh(3.0, size=20000)
+    assert np.mean(hard <= pooled[0] * RADIUS_95) < 0.92
+    for scale in (1.0, 3.0):
+        assert np.mean(rng.rayleigh(scale, size=20000) <= grouped[1] * RADIUS_95) >= 0.93
 
 
 def test_examples_and_fits_over_worker_processes_equal_the_serial_ones(tmp_path):
