@@ -36,6 +36,7 @@ from oilspill_moos.viewer.app import viewer_beside
 SHIPPED_BOUNDARIES = MISSION_DIR / "demo_boundaries.jsonl"
 RESPONSE_VEHICLES = 8
 RESPONSE_WARP = 30.0    # what this shared 2-core machine keeps up with for 8 vessels (docs/demo.md)
+RESPONSE_VESSELS_PER_PROCESS = 4   # vessels hosted in one pAntler (--with): they wake together, costing less CPU
 
 
 def shipped_boundaries() -> list[bytes]:
@@ -256,6 +257,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"fleet size (default {RESPONSE_VEHICLES}; 3 with --source shipped)")
     parser.add_argument("--warp", type=float, default=None,
                         help=f"MOOSTimeWarp (default {RESPONSE_WARP:g}; 10 with --source shipped)")
+    parser.add_argument("--vessels-per-process", type=int, default=RESPONSE_VESSELS_PER_PROCESS,
+                        help="the response: vessels' communities hosted in one pAntler process (default "
+                             f"{RESPONSE_VESSELS_PER_PROCESS}; 1 = a process each)")
     parser.add_argument("--out", type=Path, default=Path("demo-output"),
                         help="reports go to OUT/<UTC time of the run>/, OUT/latest names the newest "
                              "(default demo-output)")
@@ -281,8 +285,8 @@ def main(argv: list[str] | None = None) -> int:
     shipped = args.source == "shipped" or args.feedback
     vehicles = args.vehicles or (3 if shipped else RESPONSE_VEHICLES)
     warp = args.warp or (10.0 if shipped else RESPONSE_WARP)
-    if warp <= 0 or vehicles < 1 or args.cycles < 1 or args.cycle_hours <= 0:
-        parser.error("--warp and --cycle-hours must be > 0, --vehicles and --cycles >= 1")
+    if warp <= 0 or vehicles < 1 or args.cycles < 1 or args.cycle_hours <= 0 or args.vessels_per_process < 1:
+        parser.error("--warp and --cycle-hours must be > 0, --vehicles, --cycles and --vessels-per-process >= 1")
     out = new_run_folder(args.out)
     print(f"demo: this run's report goes to {out}/ ({args.out / 'latest'} names it)", flush=True)
     started = time.monotonic()
@@ -303,7 +307,8 @@ def main(argv: list[str] | None = None) -> int:
             from oilspill_moos.response_report import write_response_report
 
             record = asyncio.run(run_response(out, vehicles, warp, args.cycles, args.cycle_hours, args.timeout,
-                                              args.weights, reach=args.reach, viewer_port=args.viewer))
+                                              args.weights, reach=args.reach, viewer_port=args.viewer,
+                                              vessels_per_process=args.vessels_per_process))
             page = write_response_report(out, record)
             print("summary:")
             for line in summary_lines(record):

@@ -61,6 +61,7 @@ class OilspillMission:
     starts: list[tuple[float, float]] | None = None  # vehicle start positions; default: a line south of 0,0
     operating_radius: float = 20000.0
     extra: dict[str, str] = field(default_factory=dict)  # more nsplug macros for every community
+    vessels_per_process: int = 1   # >1: that many vessels' communities in one pAntler (--with), waking together
 
     def __post_init__(self):
         self.folder = Path(self.folder).resolve()
@@ -98,24 +99,43 @@ class OilspillMission:
             files.append(self.folder / community.moos_file)
         return files
 
+    def processes(self) -> list[list[Community]]:
+        """The communities each pAntler runs: the shoreside alone, the vessels `vessels_per_process` at a
+        time (each with its own MOOSDB and apps; hosted together they share one AppTicker, so a vessel
+        costs less CPU: docs/pAntler.md)."""
+        if self.vessels_per_process < 1:
+            raise ValueError(f"vessels_per_process must be >= 1, not {self.vessels_per_process}")
+        vessels = list(self.fleet.values())
+        return [[self.shoreside]] + [vessels[i:i + self.vessels_per_process]
+                                     for i in range(0, len(vessels), self.vessels_per_process)]
+
     def start(self) -> None:
         self.generate()
-        for community in self.communities:
-            self.launch(community)
+        for group in self.processes():
+            self.launch(*group)
 
-    def launch(self, community: Community) -> None:
+    def launch(self, community: Community, *hosted_with: Community) -> None:
+        """One pAntler for `community` (and `hosted_with` in the same process); its log is
+        logs/antler_<community>.txt."""
+        if hosted_with and not self.one_process:
+            raise ValueError("communities hosted together need one_process")
         args = ["pAntler", community.moos_file, "--quiet"] + (["--one-process", "--host-db"] if self.one_process else [])
+        for other in hosted_with:
+            args += ["--with", other.moos_file]
         log = open(self.folder / "logs" / f"antler_{community.name}.txt", "ab")
-        community.process = subprocess.Popen([str(Path(sys.executable).parent / args[0]), *args[1:]],
-                                             cwd=self.folder, stdout=log, stderr=subprocess.STDOUT,
-                                             start_new_session=True)
+        process = subprocess.Popen([str(Path(sys.executable).parent / args[0]), *args[1:]], cwd=self.folder,
+                                   stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         log.close()
+        for member in (community, *hosted_with):
+            member.process = process
 
     def stop(self, timeout: float = 10.0, names: list[str] | None = None) -> None:
-        """Every community (or those `names`d: a vehicle dropping out) at once, each pAntler stopping its
-        own apps, then wait for them all. `launch` starts a stopped one again."""
-        running = [c.process for c in self.communities if c.process is not None and c.process.poll() is None
-                   and (names is None or c.name in names)]
+        """Every community (or those `names`d: a vehicle dropping out, and with it the vessels hosted in
+        its process) at once, each pAntler stopping its own apps, then wait for them all. `launch`
+        starts a stopped one again."""
+        running = list({id(c.process): c.process for c in self.communities
+                        if c.process is not None and c.process.poll() is None
+                        and (names is None or c.name in names)}.values())
         for process in running:
             os.killpg(process.pid, signal.SIGTERM)
         deadline = time.monotonic() + timeout

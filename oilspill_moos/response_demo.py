@@ -293,7 +293,7 @@ def mission_defines(truth: Truth) -> dict[str, str]:
 
 async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle_h: float, timeout: float,
                        weights: Path | None = None, kind: str = DEFAULT_MODEL, reach: float = REACH,
-                       viewer_port: int | None = None) -> dict:
+                       viewer_port: int | None = None, vessels_per_process: int = 1) -> dict:
     from oilspill_moos.viewer.app import viewer_beside
 
     truth = load_truth()
@@ -301,12 +301,13 @@ async def run_response(out: Path, vehicles: int, warp: float, cycles: int, cycle
     nearest = planned[0].horizons[min(planned[0].horizons)]["polygon"]
     mission = OilspillMission(out / "run", vehicles=vehicles, warp=warp, standoff=STANDOFF, node_timeout=120.0,
                               starts=stations(nearest, vehicles, 2000.0), operating_radius=0.0,
-                              extra=mission_defines(truth))
+                              extra=mission_defines(truth), vessels_per_process=vessels_per_process)
     end_s = cycles * cycle_h * 3600.0
     step_timeout = max(timeout, 1.5 * cycle_h * 3600.0 / warp)
     record: dict = {"scenario": truth.scenario.scenario_id, "start_hour": truth.start_hour, "vehicles": vehicles,
                     "warp": warp, "cycle_h": cycle_h, "reach_m": reach, "standoff_m": STANDOFF,
-                    "top_speed": TOP_SPEED, "loop_speed": LOOP_SPEED, "bound_factor": BOUND_FACTOR}
+                    "top_speed": TOP_SPEED, "loop_speed": LOOP_SPEED, "bound_factor": BOUND_FACTOR,
+                    "vessels_per_process": vessels_per_process}
     started = time.monotonic()
     with mission, viewer_beside(mission.folder / mission.shoreside.moos_file, viewer_port):
         observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)

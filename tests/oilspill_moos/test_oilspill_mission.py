@@ -1,4 +1,5 @@
-"""End to end: missions/oilspill with 3 vehicles under time warp, real processes on loopback ports.
+"""End to end: missions/oilspill with 3 vehicles under time warp, real processes on loopback ports
+(two of the vessels hosted in one process).
 
 One mission run is shared by the two tests (module fixture) to stay inside the time budget: the
 first follows a boundary through every phase and checks the vehicles' alogs, the second kills a
@@ -30,10 +31,14 @@ TIMEOUT = 40.0        # wall seconds for any one step
 def running(tmp_path_factory):
     # The whole-loop mode (patrol = loop): these tests check the loop itself is re-shared; the arcs of the
     # default mode re-balance by the planner's own tests (test_planner.py, test_path_assign.py).
+    # abe and ben hosted in one pAntler (--with), as the response demo hosts its vessels; cal alone, so
+    # that killing it (below) takes no other vessel with it
     mission = OilspillMission(tmp_path_factory.mktemp("oilspill"), vehicles=3, warp=WARP, standoff=10.0,
                               node_timeout=40.0,  # 4 s of wall time: a loaded CI machine must not drop anyone
-                              extra={"PATROL": "loop"})
+                              extra={"PATROL": "loop"}, vessels_per_process=2)
+    assert [[c.name for c in group] for group in mission.processes()] == [["shoreside"], ["abe", "ben"], ["cal"]]
     mission.start()
+    assert mission.fleet["abe"].process is mission.fleet["ben"].process is not mission.fleet["cal"].process
     loop = asyncio.new_event_loop()
     observer = Observer("127.0.0.1", mission.shoreside.moos_port, WARP)
     thread = threading.Thread(target=loop.run_until_complete, args=(observer.client.run(),), daemon=True)
