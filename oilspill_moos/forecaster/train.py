@@ -14,17 +14,18 @@ validation MSE, one CPU thread per model; ``--max-minutes`` caps each model's wa
 
 Calibration (``calibrate``): on the validation cases every kind forecasts, and per horizon its ensemble
 spread is scaled so that the nominal 95 % radius (``engine.RADIUS_95`` x ``uncertainty_m``) holds the
-true centroid in 95 % of them, in each forcing family (steady, varying) of the validation split. The factors go to ``calibration.json`` beside the weights, with the
-prior's parameters and the training record.
+true centroid in 95 % of them, in each forcing family (steady, varying) of the validation split. The
+factors go to ``calibration.json`` beside the weights, with the prior's parameters and the training
+record.
 """
 from __future__ import annotations
 
 import argparse
 import copy
-import multiprocessing
 import hashlib
 import json
 import math
+import multiprocessing
 import os
 import pickle
 import random
