@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from moosdb_py.app import BEHIND_SHARE, status_ticks, ticks_missed
+from moosdb_py.app import fell_behind, status_ticks
 from moosdb_py.client import MOOSClient
 from moosdb_py.ports import free_port   # never the same port twice: vessels are prepared before their DBs bind
 
@@ -91,12 +91,7 @@ def tick_counts(watchers: list[MOOSClient], names: list[str] | None = None) -> d
 
 def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]) -> list[str]:
     """Apps that missed more than BEHIND_SHARE of the AppTicks due between two statuses."""
-    late = []
-    for app, ticks in sorted(after.items()):
-        missed, due = ticks_missed(before.get(app, (0, 0)), ticks)
-        if missed > BEHIND_SHARE * due:
-            late.append(f"{app} ({missed} of {due})")
-    return late
+    return [f"{app} ({missed} of {due})" for app, missed, due in fell_behind(before, after)]
 
 
 async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...],

@@ -391,11 +391,18 @@ def status_ticks(status: str) -> tuple[str, int, int] | None:
     return (match.group(1), int(match.group(2)), int(match.group(3))) if match else None
 
 
-def ticks_missed(before: tuple[int, int], after: tuple[int, int]) -> tuple[int, int]:
-    """(AppTicks missed, AppTicks due) between two (Iterations, TicksMissed) of one app; it fell behind when
-    missed exceeds BEHIND_SHARE of due."""
-    missed = after[1] - before[1]
-    return missed, after[0] - before[0] + missed
+def fell_behind(before: dict, after: dict) -> list[tuple]:
+    """(app, AppTicks missed, AppTicks due) of each app of `after` that missed more than BEHIND_SHARE of
+    the AppTicks due since `before`, both mapping an app to its (Iterations, TicksMissed) (`status_ticks`;
+    an app not in `before` counts from zero), in the apps' order."""
+    late = []
+    for app, (iterations, missed_now) in sorted(after.items()):
+        iterations_then, missed_then = before.get(app, (0, 0))
+        missed = missed_now - missed_then
+        due = iterations - iterations_then + missed
+        if missed > BEHIND_SHARE * due:
+            late.append((app, missed, due))
+    return late
 
 
 def next_wake(ticks: list[tuple[float, float]]) -> float:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from moosdb_py.app import BEHIND_SHARE, status_ticks, ticks_missed
+from moosdb_py.app import fell_behind, status_ticks
 from moosdb_py.client import MOOSClient
 from moosdb_py.nsplug import preprocess
 from moosdb_py.ports import free_port
@@ -301,12 +301,8 @@ class TickWatch:
 
     def behind(self) -> list[dict]:
         """The apps that missed more than BEHIND_SHARE of their AppTicks since the first status seen."""
-        late = []
-        for (community, app), ticks in sorted(self.last.items()):
-            missed, due = ticks_missed(self.first[(community, app)], ticks)
-            if missed > BEHIND_SHARE * due:
-                late.append({"community": community, "app": app, "missed": missed, "due": due})
-        return late
+        return [{"community": community, "app": app, "missed": missed, "due": due}
+                for (community, app), missed, due in fell_behind(self.first, self.last)]
 
     async def close(self) -> None:
         for client in self.clients.values():

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from helpers import async_wait_until
-from moosdb_py.app import AppTicker, MOOSApp, next_wake
+from moosdb_py.app import BEHIND_SHARE, AppTicker, MOOSApp, fell_behind, next_wake
 from moosdb_py.client import MOOSClient
 from moosdb_py.moosdb import MOOSDB
 
@@ -224,3 +224,23 @@ def test_apps_sharing_a_loop_keep_their_rates_and_wake_together(monkeypatch):
         assert 85 <= done[0] / elapsed <= 108 and 68 <= done[1] / elapsed <= 86
         assert len(wakes) - woken <= 0.62 * sum(done)
     asyncio.run(scenario())
+
+
+@given(st.dictionaries(st.sampled_from("ABCDE"), st.tuples(st.integers(0, 500), st.integers(0, 50),
+                                                          st.integers(0, 500), st.integers(0, 50)), max_size=5),
+       st.booleans())
+def test_an_app_fell_behind_when_it_missed_over_2_percent_of_the_appticks_due_between_two_statuses(apps, known):
+    """Between (Iterations, TicksMissed) then and now, due = iterations run + ticks missed; an app is named,
+    in order, exactly when missed > BEHIND_SHARE x due; one not seen before counts from zero."""
+    before = {a: (i, m) for a, (i, m, _, _) in apps.items()} if known else {}
+    after = {a: (i + di, m + dm) for a, (i, m, di, dm) in apps.items()}
+    expected = []
+    for app in sorted(apps):
+        then = before.get(app, (0, 0))
+        missed, due = after[app][1] - then[1], after[app][0] - then[0] + after[app][1] - then[1]
+        if missed > BEHIND_SHARE * due:
+            expected.append((app, missed, due))
+    assert fell_behind(before, after) == expected
+    # by hand: A missed 2 of 100 (not over 2 %), B 3 of 100 (over), C 1 of 1, not seen before
+    assert fell_behind({"A": (10, 0), "B": (10, 0)}, {"A": (108, 2), "B": (107, 3), "C": (0, 1)}) == \
+        [("B", 3, 100), ("C", 1, 1)]
