@@ -405,12 +405,25 @@ def _calibration_job(job) -> tuple[list, int]:
     out_dir, kind, held, scenarios, params = job
     torch.set_num_threads(1)
     correctors = {kind: Corrector.load(out_dir / f"{kind}.pt")} if kind in KINDS else {}
-    cases, groups = [], []
-    for scenario in scenarios:
-        made = scenario_cases(scenario, stride=1, held=held)
-        cases += made
-        groups += [forcing_family(scenario)] * len(made)
+    cases, groups = validation_cases(held, scenarios)
     return calibrate(cases, [kind], E.Settings(params), correctors, groups=groups)[kind], len(cases)
+
+
+_VALIDATION_CASES: dict = {}
+
+
+def validation_cases(held: bool, scenarios) -> tuple[list, list[str]]:
+    """(cases, forcing family of each) of the validation scenarios, built once per process and mode for
+    all the kinds calibrated there."""
+    key = (held, tuple(s.scenario_id for s in scenarios))
+    if key not in _VALIDATION_CASES:
+        cases, groups = [], []
+        for scenario in scenarios:
+            made = scenario_cases(scenario, stride=1, held=held)
+            cases += made
+            groups += [forcing_family(scenario)] * len(made)
+        _VALIDATION_CASES[key] = cases, groups
+    return _VALIDATION_CASES[key]
 
 
 def forcing_family(scenario) -> str:
