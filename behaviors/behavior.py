@@ -38,7 +38,7 @@ class InfoBuffer:
 
     def set(self, var: str, value: Value, time: float) -> bool:
         """Store a value; a variable keeps the type (double or string) it was first given."""
-        if type(value) is not float and isinstance(value, (int, float)) and not isinstance(value, bool):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
             value = float(value)
         old = self.values.get(var)
         if old is not None and isinstance(old, float) != isinstance(value, float):
