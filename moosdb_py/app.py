@@ -7,6 +7,7 @@ two seconds and listens to `<NAME>_CMD`. `main` gives every app the MOOS command
 from __future__ import annotations
 
 import asyncio
+import heapq
 import inspect
 import logging
 import os
@@ -330,13 +331,20 @@ class AppTicker:
     several apps): a wake-up runs every app whose tick is due within its slack (TICK_SLACK of its
     period, early or late), in the order they are due, so that apps whose periods do not meet still
     share wake-ups. Each app's ticks stay on the multiples of its period: its rate is exact, only the
-    phase of an iteration moves, by less than a quarter period."""
+    phase of an iteration moves, by less than a quarter period.
+
+    A wake-up runs as an earliest-deadline-first pass: while it lasts, an app whose next tick falls
+    due (without slack) runs in it too, even one that already ran (many vessels' helms in one pass
+    take longer than a PID's period: the PIDs run between them instead of missing ticks), up to
+    PASS_TICKS ticks per app so that a saturated process still returns to its event loop."""
+
+    PASS_TICKS = 2
 
     _of_loop: "weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, AppTicker]" = weakref.WeakKeyDictionary()
 
     def __init__(self, loop: asyncio.AbstractEventLoop):
         self.loop = loop
-        self.apps: list[MOOSApp] = []
+        self.apps: dict[MOOSApp, None] = {}   # a dict: membership is asked for every tick of a pass
         self._timer: asyncio.TimerHandle | None = None
         self._wake = 0.0            # when the timer is due (the loop may call it a little early)
         self._running = False
@@ -349,12 +357,11 @@ class AppTicker:
         return ticker
 
     def add(self, app: MOOSApp) -> None:
-        self.apps.append(app)
+        self.apps[app] = None
         self._schedule()
 
     def remove(self, app: MOOSApp) -> None:
-        if app in self.apps:
-            self.apps.remove(app)
+        if self.apps.pop(app, 0) is None:
             self._schedule()
 
     def _schedule(self) -> None:
@@ -373,13 +380,28 @@ class AppTicker:
         self._running = True
         try:
             now = max(_time.monotonic(), self._wake)
-            due = [a for a in self.apps if a._next_tick - a._tick_slack <= now]
-            due.sort(key=_next_tick)
-            for app in due:
-                if app in self.apps:    # not stopped by an app ticked before it
-                    app._tick(now)
-                    if app._ticking.done():    # failed
-                        self.apps.remove(app)
+            apps = self.apps
+            due, waiting = [], []      # heaps of (next tick, order, app): to run in this pass / not yet due
+            for order, app in enumerate(apps):
+                (due if app._next_tick - app._tick_slack <= now else waiting).append((app._next_tick, order, app))
+            heapq.heapify(due)
+            heapq.heapify(waiting)
+            budget = self.PASS_TICKS * len(apps)
+            order = len(apps)
+            while due and budget:
+                app = heapq.heappop(due)[2]
+                if app not in apps:    # stopped by an app ticked before it
+                    continue
+                app._tick(now)
+                budget -= 1
+                if app._ticking.done():    # failed
+                    del apps[app]
+                    continue
+                order += 1
+                heapq.heappush(waiting, (app._next_tick, order, app))
+                now = _time.monotonic()
+                while waiting and waiting[0][0] <= now:    # fell due while the pass ran
+                    heapq.heappush(due, heapq.heappop(waiting))
         finally:
             self._running = False
             self._schedule()
@@ -412,10 +434,6 @@ def next_wake(ticks: list[tuple[float, float]]) -> float:
     close = min(due + slack for due, slack in ticks)
     batch = [(due, slack) for due, slack in ticks if due - slack <= close]
     return max(min(due for due, _ in batch), max(due - slack for due, slack in batch))
-
-
-def _next_tick(app: MOOSApp) -> float:
-    return app._next_tick
 
 
 def _memory_kb() -> int:
