@@ -381,15 +381,19 @@ class AppTicker:
         try:
             now = max(_time.monotonic(), self._wake)
             apps = self.apps
-            due, waiting = [], []      # heaps of (next tick, order, app): to run in this pass / not yet due
+            kinds: dict[type, int] = {}
+            due, waiting = [], []      # heaps: to run in this pass / not yet due
             for order, app in enumerate(apps):
-                (due if app._next_tick - app._tick_slack <= now else waiting).append((app._next_tick, order, app))
+                if app._next_tick - app._tick_slack <= now:
+                    due.append((kinds.setdefault(type(app), len(kinds)), app._next_tick, order, app))
+                else:
+                    waiting.append((app._next_tick, order, app))
             heapq.heapify(due)
             heapq.heapify(waiting)
             budget = self.PASS_TICKS * len(apps)
             order = len(apps)
             while due and budget:
-                app = heapq.heappop(due)[2]
+                app = heapq.heappop(due)[-1]
                 if app not in apps:    # stopped by an app ticked before it
                     continue
                 app._tick(now)
@@ -400,8 +404,8 @@ class AppTicker:
                 order += 1
                 heapq.heappush(waiting, (app._next_tick, order, app))
                 now = _time.monotonic()
-                while waiting and waiting[0][0] <= now:    # fell due while the pass ran
-                    heapq.heappush(due, heapq.heappop(waiting))
+                while waiting and waiting[0][0] <= now:    # fell due while the pass ran: before the rest
+                    heapq.heappush(due, (-1, *heapq.heappop(waiting)))
         finally:
             self._running = False
             self._schedule()

@@ -226,6 +226,72 @@ def test_apps_sharing_a_loop_keep_their_rates_and_wake_together(monkeypatch):
     asyncio.run(scenario())
 
 
+def test_a_fast_app_runs_between_slow_ones_due_in_the_same_wake_up():
+    """Eight apps at AppTick 1 whose iterations take 12 ms each all fall due in one wake-up (96 ms): an app at
+    AppTick 50 (20 ms) sharing the loop runs between them when its ticks fall due (an earliest-deadline-first
+    pass) instead of waiting for the batch to end and missing four periods each time."""
+    class Slow(Counter):
+        def iterate(self):
+            time.sleep(0.012)
+            super().iterate()
+
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=1)
+        await db.start()
+        fast = Counter(name="counter_fast", port=db.port, time_warp=1)
+        fast.app_tick = 50
+        slow = [Slow(name=f"counter_slow{i}", port=db.port, time_warp=1) for i in range(8)]
+        for app in (fast, *slow):
+            app.client.local_db = db
+            app.app_tick = 50 if app is fast else 1
+        tasks = [asyncio.create_task(a.run_async()) for a in (fast, *slow)]
+        await async_wait_until(lambda: all(a.iterations >= 1 for a in slow) and fast.iterations > 5)
+        missed, slow_runs = fast.ticks_missed, slow[0].iterations
+        await async_wait_until(lambda: slow[0].iterations >= slow_runs + 2, timeout=10)
+        missed = fast.ticks_missed - missed
+        for a in (fast, *slow):
+            a.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        assert missed <= 1, f"the fast app missed {missed} ticks over two slow batches"
+    asyncio.run(scenario())
+
+
+def test_a_wake_up_runs_the_apps_of_one_kind_together_in_launch_order():
+    """Two vessels' apps hosted together (kinds A and B, launched A1 B1 A2 B2) with ticks due together: a wake-up
+    runs A1 A2 B1 B2 (one app's code for every vessel while it is in the processor's caches), the kinds in the
+    order they were launched (a vessel's simulator before its controller)."""
+    ran = []
+
+    class KindA(Counter):
+        def iterate(self):
+            ran.append(self.name)
+
+    class KindB(KindA):
+        pass
+
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=10)
+        await db.start()
+        apps = [kind(name=f"{kind.__name__}{n}", port=db.port, time_warp=10) for n in (1, 2) for kind in (KindA, KindB)]
+        for app in apps:
+            app.client.local_db = db
+            app.app_tick = 5
+        tasks = []
+        for app in apps:
+            tasks.append(asyncio.create_task(app.run_async()))
+            await async_wait_until(lambda: app.iterations >= 1)
+        start = len(ran)
+        await async_wait_until(lambda: len(ran) >= start + 12)
+        for app in apps:
+            app.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        return ran[start:start + 12]
+    passes = asyncio.run(scenario())
+    assert passes == ["KindA1", "KindA2", "KindB1", "KindB2"] * 3
+
+
 @given(st.dictionaries(st.sampled_from("ABCDE"), st.tuples(st.integers(0, 500), st.integers(0, 50),
                                                           st.integers(0, 500), st.integers(0, 50)), max_size=5),
        st.booleans())
