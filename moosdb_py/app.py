@@ -215,7 +215,7 @@ class MOOSApp:
 
         Ticks are due on multiples of the period (of the monotonic clock). When late, the latest
         tick due runs at once and the whole periods before it count as missed."""
-        self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: routed then)
+        self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: when the wake-up ends)
         try:
             if self._comms.done():   # a mail callback raised, or the DB refused us on reconnecting: not deaf
                 self._comms.result()

@@ -200,8 +200,17 @@ class MOOSDBCore:
         """Messages from an in-process client, with the effect `receive` gives their packet: the same
         routing, replies and mail, as the messages a subscriber would decode (the DB keeps and hands on
         copies; the client gives the list away)."""
-        if client.state != READY or not msgs:
-            return self._output(now)
+        return self.receive_local_batches(((client, msgs),), now)
+
+    def receive_local_batches(self, batches: Iterable[tuple[DBClient, list[MOOSMsg]]], now: float) -> Iterable[Outgoing]:
+        """`receive_local` of several in-process clients' batches, routed in order and answered together: each
+        subscriber gets the mail of all of them at once, as a socket client reads several packets in one read."""
+        for client, msgs in batches:
+            if client.state == READY and msgs:
+                self._route_local(client, msgs, now)
+        return self._output(now)
+
+    def _route_local(self, client: DBClient, msgs: list[MOOSMsg], now: float) -> None:
         client.last_rx = now
         client.packets_in += 1
         head: list[MOOSMsg] = []
@@ -227,7 +236,6 @@ class MOOSDBCore:
         if head or replies:
             client.outgoing += head + replies
             self._ready[client] = None
-        return self._output(now)
 
     def receive(self, client: DBClient, data: bytes, now: float) -> Iterable[Outgoing]:
         """Bytes from a client, however the stream was chunked."""

@@ -107,11 +107,16 @@ class LocalLink:
         if not self.ended:
             self.db.kick(self)
 
+    def batch(self) -> list[MOOSMsg]:
+        """What the client has to send (nothing once the link ended or its client failed)."""
+        if self.ended or self.error is not None or self.take is None:
+            return []
+        return self.take()
+
     def flush(self) -> None:
-        if not self.ended and self.error is None and self.take is not None:
-            msgs = self.take()
-            if msgs:
-                self.db.transmit(self.db.core.receive_local(self.client, msgs, self.db.now()))
+        msgs = self.batch()
+        if msgs:
+            self.db.transmit(self.db.core.receive_local(self.client, msgs, self.db.now()))
 
     def disconnect(self) -> None:
         """Send what is queued (unless the client failed), then close, as a socket client's close does."""
@@ -192,8 +197,9 @@ class MOOSDB:
     def _flush_local(self) -> None:
         self._flush_due = False
         kicked, self._kicked = self._kicked, {}
-        for link in kicked:
-            link.flush()
+        batches = [(link.client, msgs) for link in kicked if (msgs := link.batch())]
+        if batches:
+            self.transmit(self.core.receive_local_batches(batches, self.now()))
 
     def close(self) -> None:
         self._serving = False

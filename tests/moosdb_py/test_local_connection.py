@@ -157,3 +157,47 @@ def test_idle_local_clients_stay_alive_with_timing_messages():
         assert set(kept) == {"bare", "pIdle"}, "dropped as silent"
         assert kept["bare"] >= 2 and kept["pIdle"] >= 2     # timing messages the DB counted, in 3 s and more
     asyncio.run(asyncio.wait_for(scenario(), 20))
+
+
+GROUPS = st.lists(st.tuples(st.floats(0.0, 0.6), st.lists(st.tuples(
+    st.sampled_from(("pub_a", "pub_b")), st.lists(st.tuples(st.sampled_from(KEYS), VALUES), min_size=1, max_size=3)),
+    min_size=1, max_size=4)), min_size=1, max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(groups=GROUPS, interval=st.sampled_from((0.0, 0.5)))
+def test_batches_routed_together_give_each_subscriber_the_same_mail_in_one_delivery(groups, interval):
+    """Hosted clients' batches of one wake-up, routed together (`receive_local_batches`), give a subscriber
+    the mail that routing them one by one gives, in the same order, in one delivery per wake-up."""
+    def community():
+        core = MOOSDBCore(now=0.0, hostname="vm")
+        clients = {}
+        for name in ("sub", "pub_a", "pub_b"):
+            clients[name], _ = core.connect_local(name, MOOSMsg("i", STRING, "asynchronous", string=name, time=0.0), 0.0)
+        list(core.receive_local(clients["sub"], [
+            MOOSMsg(REGISTER, "D", "X", interval, source="sub", time=0.0),
+            MOOSMsg(WILDCARD_REGISTER, STRING, "sub", string="AppPattern=*,VarPattern=W*,Interval=0", time=0.0)], 0.0))
+        return core, clients
+
+    one_by_one, together = community(), community()
+    mail: dict[int, list[MOOSMsg]] = {0: [], 1: []}
+    deliveries = []
+    now, next_id = 0.0, 0
+    for pause, wake_up in groups:
+        now += pause
+        batches = {0: [], 1: []}
+        for publisher, posts in wake_up:
+            msgs = [MOOSMsg.notification(key, value, time=now, source=publisher, msg_id=next_id + i)
+                    for i, (key, value) in enumerate(posts)]
+            next_id += len(posts)
+            for side, (_, clients) in enumerate((one_by_one, together)):
+                batches[side].append((clients[publisher], [m.copy() for m in msgs]))
+        for client, msgs in batches[0]:
+            mail[0] += [m for c, data, _ in one_by_one[0].receive_local(client, msgs, now) if c.handle == "sub"
+                        for m in data]
+        out = [data for c, data, _ in together[0].receive_local_batches(batches[1], now) if c.handle == "sub"]
+        deliveries.append(len(out))
+        mail[1] += [m for data in out for m in data]
+    fields = list(MOOSMsg.__slots__)
+    assert [[getattr(m, f) for f in fields] for m in mail[1]] == [[getattr(m, f) for f in fields] for m in mail[0]]
+    assert max(deliveries) <= 1
