@@ -50,10 +50,12 @@ OIL_TYPES = ("GENERIC LIGHT CRUDE", "GENERIC MEDIUM CRUDE", "SOUTH LOUISIANA", "
 WIND_PATTERNS = ("constant", "veer", "shift")
 # Steady-forcing regimes (the paper's five plus plain steady drift): constant wind and mean current, no
 # inertial or tidal oscillation, no gusts (a slow veer at most). The plan's draws from ``VARYING_DRAWS``
-# on are all steady, cycled over these regimes and over the training regions only (``generation_plan``),
-# so the out-of-distribution test split keeps its construction and its scenarios.
+# on are all steady, cycled over these regimes: the first ``STEADY_TRAINING_DRAWS`` over the training
+# regions, the rest over the held-out regions, so the out-of-distribution test split keeps its
+# construction and gains steady forcing, what an outside evaluator's scenarios have (``generation_plan``).
 STEADY_REGIMES = ("steady", "initial_release", "steady_growth", "dispersal", "multi_lobe", "strong_forcing")
 VARYING_DRAWS = 192            # the first draws of the plan: time-varying forcing (the set as first made)
+STEADY_TRAINING_DRAWS = 108    # then steady draws in the training regions (the set's second part)
 HDR = {"mass_fraction": 0.9, "grid_cells": 80, "min_cell_m": 150.0, "smoothing_cells": 1.5}
 MIN_PART_FRACTION = 0.02       # footprint parts under this fraction of the largest are dropped
 SURFACE_DEPTH_M = 0.5
@@ -342,18 +344,21 @@ def run_scenario(params: dict, particles: int = 1000) -> Scenario:
 
 def generation_plan(count: int, base_seed: int, land=is_land) -> list[dict]:
     """``count`` parameter sets: the first ``VARYING_DRAWS`` time-varying, regions in round-robin order
-    so any prefix covers every region; after them steady regimes (``STEADY_REGIMES`` in turn) released
-    in the training regions in turn, so the held-out regions keep only their time-varying scenarios."""
+    so any prefix covers every region; then ``STEADY_TRAINING_DRAWS`` steady ones (``STEADY_REGIMES`` in
+    turn) released in the training regions in turn; then steady ones in the held-out regions in turn
+    (test scenarios: the held-out footprint method, never trained on)."""
     names = list(REGIONS)
     training = [r for r in REGIONS if r not in HELD_OUT_REGIONS]
     plan = []
     for i in range(count):
         if i < VARYING_DRAWS:
             plan.append(scenario_params(names[i % len(names)], base_seed + i, land=land))
-        else:
-            j = i - VARYING_DRAWS
-            plan.append(scenario_params(training[j % len(training)], base_seed + i, land=land,
-                                        regime=STEADY_REGIMES[j % len(STEADY_REGIMES)]))
+            continue
+        j = i - VARYING_DRAWS
+        regions = training if j < STEADY_TRAINING_DRAWS else list(HELD_OUT_REGIONS)
+        k = j if j < STEADY_TRAINING_DRAWS else j - STEADY_TRAINING_DRAWS
+        plan.append(scenario_params(regions[k % len(regions)], base_seed + i, land=land,
+                                    regime=STEADY_REGIMES[k % len(STEADY_REGIMES)]))
     return plan
 
 

@@ -5,8 +5,9 @@ import shapely
 from shapely.geometry import MultiPolygon
 
 from oilspill_moos.forecaster.dataset import HELD_OUT_METHOD, HELD_OUT_REGIONS
-from oilspill_moos.forecaster.simulate import (FOOTPRINT_METHODS, REGIONS, STEADY_REGIMES, TRAIN_METHODS, VARYING_DRAWS,
-                                               footprint, forcing_series, generation_plan, given_forcing, main,
+from oilspill_moos.forecaster.simulate import (FOOTPRINT_METHODS, REGIONS, STEADY_REGIMES, STEADY_TRAINING_DRAWS,
+                                               TRAIN_METHODS, VARYING_DRAWS, footprint, forcing_series,
+                                               generation_plan, given_forcing, main,
                                                particles_to_polygon, scenario_params)
 
 
@@ -25,12 +26,16 @@ def test_parameters_are_deterministic_per_seed_and_the_split_is_by_construction(
         scenario_params("atlantis", 1, land=open_sea)
 
 
-def test_steady_regimes_have_constant_forcing_and_stay_out_of_the_held_out_regions():
-    plan = generation_plan(VARYING_DRAWS + 2 * len(STEADY_REGIMES), 20260, land=open_sea)
+def test_steady_regimes_have_constant_forcing_training_regions_first_then_held_out_ones():
+    plan = generation_plan(VARYING_DRAWS + STEADY_TRAINING_DRAWS + 2 * len(STEADY_REGIMES), 20260, land=open_sea)
     assert all(p.get("regime", "varying") == "varying" for p in plan[:VARYING_DRAWS])
-    steady = plan[VARYING_DRAWS:]
-    assert [p["regime"] for p in steady] == 2 * list(STEADY_REGIMES)
-    assert all(p["region"] not in HELD_OUT_REGIONS and p["method"] in TRAIN_METHODS for p in steady)
+    training, held_out = plan[VARYING_DRAWS:VARYING_DRAWS + STEADY_TRAINING_DRAWS], plan[VARYING_DRAWS + STEADY_TRAINING_DRAWS:]
+    assert [p["regime"] for p in training] == STEADY_TRAINING_DRAWS // len(STEADY_REGIMES) * list(STEADY_REGIMES)
+    assert all(p["region"] not in HELD_OUT_REGIONS and p["method"] in TRAIN_METHODS for p in training)
+    assert [p["regime"] for p in held_out] == 2 * list(STEADY_REGIMES)
+    assert {p["region"] for p in held_out} == set(HELD_OUT_REGIONS)
+    assert all(p["method"] == HELD_OUT_METHOD for p in held_out)
+    steady = training[:2 * len(STEADY_REGIMES)] + held_out
     for p in steady:
         f = forcing_series(p)
         assert p["inertial_amp"] == p["tidal_amp"] == p["wind_gust"] == 0.0 and p["wind_shift_h"] is None
