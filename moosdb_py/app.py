@@ -329,14 +329,16 @@ class MOOSApp:
 class AppTicker:
     """The AppTicks of every MOOSApp in one event loop, run from one timer (pAntler --one-process hosts
     several apps): a wake-up runs every app whose tick is due within its slack (TICK_SLACK of its
-    period, early or late), in the order they are due, so that apps whose periods do not meet still
-    share wake-ups. Each app's ticks stay on the multiples of its period: its rate is exact, only the
-    phase of an iteration moves, by less than a quarter period.
+    period, early or late), so that apps whose periods do not meet still share wake-ups. Each app's
+    ticks stay on the multiples of its period: its rate is exact, only the phase of an iteration
+    moves, by less than a quarter period.
 
-    A wake-up runs as an earliest-deadline-first pass: while it lasts, an app whose next tick falls
-    due (without slack) runs in it too, even one that already ran (many vessels' helms in one pass
-    take longer than a PID's period: the PIDs run between them instead of missing ticks), up to
-    PASS_TICKS ticks per app so that a saturated process still returns to its event loop."""
+    The apps of one kind (class) run together, kinds in the order they were added (vessels hosted
+    together: every vessel's helm while its code is in the caches; a vessel's simulator still before
+    its controller), each kind's in the order they are due. While the pass lasts, an app whose next
+    tick falls due (without slack) runs at once, before the rest, even one that already ran (many
+    vessels' helms take longer than a PID's period: the PIDs run between them instead of missing
+    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop."""
 
     PASS_TICKS = 2
 
