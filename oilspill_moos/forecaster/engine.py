@@ -155,11 +155,52 @@ def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
     return moment / (lever + ridge)
 
 
+def line_misfit(t: np.ndarray, track: np.ndarray) -> float:
+    """RMS distance (m) of the points ``track`` [T, 2] at times ``t`` from their least-squares straight
+    line in time."""
+    design = np.column_stack([np.ones_like(t), t - t.mean()])
+    coef, *_ = np.linalg.lstsq(design, track, rcond=None)
+    return float(np.sqrt(((track - design @ coef) ** 2).sum(axis=1).mean()))
+
+
+def constant_velocity_weight(obs: Observations, params: DriftParameters) -> float:
+    """How far the corrected prior is moved towards the observed constant velocity, 0-1.
+
+    Two explanations of the observed centroids, each a straight line in time with the same number of
+    parameters: constant velocity, and the forcing-predicted track plus a constant drift error. Each is
+    weighed by the inverse of its misfit's variance (misfits at least ``CENTROID_NOISE_M``). Under
+    steady real forcing with erroneous given forcing the observed track is straighter than what the
+    forcing explains, so the weight goes towards 1; where the forcing bends the track as observed
+    (inertial current, a wind shift), towards 0; equal misfits give 0.5. Zero with fewer than three
+    observations (no misfit to judge by)."""
+    t = np.asarray(obs.times_s, float)
+    if len(t) < 3:
+        return 0.0
+    centroids = np.array([s.centroid for s in obs.shapes])
+    forced = displacement(obs.track, float(t[0]), t, params.windage, params.deflection_deg)
+    cv, forcing = (max(line_misfit(t, y), CENTROID_NOISE_M) ** 2 for y in (centroids, centroids - forced))
+    return forcing / (cv + forcing)
+
+
+def window_inputs(obs: Observations, params: DriftParameters) -> tuple[np.ndarray, np.ndarray, float]:
+    """(features, elapsed hours, frame angle) of ``obs`` for a learned correction: the one place training
+    examples and forecasts build their inputs."""
+    return F.window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params),
+                             drift_error=forcing_error(obs, params), forcing_ahead=obs.forcing_ahead,
+                             cv_weight=constant_velocity_weight(obs, params))
+
+
 def history_correction(obs: Observations, params: DriftParameters, horizons_h) -> "Correction":
-    """The prior's correction from ``forcing_error``: its drift error carried on over each horizon."""
+    """The prior's correction from the observed history, per horizon: its drift error (``forcing_error``)
+    carried on, blended with the observed constant velocity by ``constant_velocity_weight``."""
     horizons = tuple(horizons_h)
-    error = forcing_error(obs, params)
-    drift_m = 3600.0 * np.asarray(horizons, float)[:, None] * error[None, :]
+    horizons_s = 3600.0 * np.asarray(horizons, float)
+    drift_m = horizons_s[:, None] * forcing_error(obs, params)[None, :]
+    weight = constant_velocity_weight(obs, params)
+    if weight > 0:
+        velocity, _ = trend(obs)
+        forced = displacement(obs.track, 0.0, horizons_s, params.windage, params.deflection_deg)
+        drift_m = (1 - weight) * drift_m + weight * (horizons_s[:, None] * velocity[None, :] - forced)
     return Correction(drift_m, np.zeros(len(horizons)), np.zeros((len(horizons), 2)), horizons)
 
 

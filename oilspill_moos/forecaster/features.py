@@ -37,7 +37,7 @@ STEP_FEATURES = (
     "observed", "dt_h", "obs_u", "obs_v", "drift_u", "drift_v", "resid_u", "resid_v",
     "wind_u", "wind_v", "current_u", "current_v", "rel_log_area", "log_area_rate", "log_aspect",
     "orient_cos2", "orient_sin2", "log_parts", "largest_fraction", "compactness", "rel_x_km", "rel_y_km",
-    "log_area_km2", "error_u", "error_v", "forcing_ahead",
+    "log_area_km2", "error_u", "error_v", "forcing_ahead", "cv_weight",
 )
 FEATURE_NAMES = STEP_FEATURES
 FEATURE_INDEX = {name: i for i, name in enumerate(FEATURE_NAMES)}
@@ -278,15 +278,17 @@ def frame_angle(drift_velocity: np.ndarray) -> float:
 
 
 def window_features(shapes: list[Shape], times_s: np.ndarray, environments: np.ndarray, drift_of,
-                    window: int = WINDOW, drift_error=(0.0, 0.0),
-                    forcing_ahead: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+                    window: int = WINDOW, drift_error=(0.0, 0.0), forcing_ahead: bool = False,
+                    cv_weight: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
     """(features [window, F], elapsed hours [window], frame angle) of the latest ``window`` observations.
 
     ``environments`` [T, 4] wind u/v and current u/v at each observation; ``drift_of(i0, i1)`` the
     forcing-predicted drift velocity [2] m/s averaged between observations i0 and i1; ``drift_error``
     the forcing's drift error estimated from the whole history (``engine.forcing_error``, m/s,
     plane axes), repeated on every observed row; ``forcing_ahead`` whether forcing over the horizon was
-    given (else the prior holds the latest forcing), 1 or 0 on every observed row. Fewer than
+    given (else the prior holds the latest forcing), 1 or 0 on every observed row; ``cv_weight`` how far
+    the corrected prior was moved towards the observed constant velocity
+    (``engine.constant_velocity_weight``), on every observed row. Fewer than
     ``window`` observations are padded at the front with rows of zeros (``observed`` = 0, dt = 0).
     """
     n = len(shapes)
@@ -330,6 +332,7 @@ def window_features(shapes: list[Shape], times_s: np.ndarray, environments: np.n
         row[22] = math.log(s.area / 1e6)
         row[23:25] = error
         row[25] = float(forcing_ahead)
+        row[26] = cv_weight
         rows.append(row)
     x = np.vstack(rows)
     elapsed = np.concatenate([[0.0], np.diff(times_s[first:]) / 3600])

@@ -250,12 +250,9 @@ class Corrector:
 
     def inputs(self, obs, params):
         """(features, elapsed hours, frame angle, the prior's history correction) of one ``Observations``."""
-        from .engine import forcing_error, history_correction
-        from .features import window_features
+        from .engine import history_correction, window_inputs
 
-        error = forcing_error(obs, params)
-        x, dt, angle = window_features(obs.shapes, obs.times_s, obs.environments, obs.drift_between(params),
-                                       drift_error=error, forcing_ahead=obs.forcing_ahead)
+        x, dt, angle = window_inputs(obs, params)
         return x, dt, angle, history_correction(obs, params, self.horizons_h)
 
     def corrections(self, observations, params) -> list:

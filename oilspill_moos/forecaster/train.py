@@ -125,17 +125,15 @@ class Examples:
 def case_example(case, params: DriftParameters, horizons_h=F.HORIZONS_H):
     """(x, dt, y) of one case; y [H, 3] = frame residual km (2) of the corrected prior (the prior moved
     on by its history correction, ``engine.history_correction``), log area ratio."""
-    error = E.forcing_error(case.obs, params)
-    x, dt, angle = F.window_features(case.obs.shapes, case.obs.times_s, case.obs.environments,
-                                     case.obs.drift_between(params), drift_error=error,
-                                     forcing_ahead=case.obs.forcing_ahead)
+    x, dt, angle = E.window_inputs(case.obs, params)
+    base = E.history_correction(case.obs, params, horizons_h).drift_m
     horizons_s = 3600.0 * np.asarray(horizons_h, float)
     moved, start = drift(case.obs.geometries[-1], 0.0, horizons_s, case.obs.track, params)
     method = ParticleFootprint(case.obs.geometries[-1], start)
     back = F.rotation(-angle)
     y = np.zeros((len(horizons_h), 3))
     for j, (p, truth) in enumerate(zip(moved, case.truth_shapes)):
-        y[j, :2] = back @ (truth.centroid - p.mean(axis=0) - error * horizons_s[j]) / 1e3
+        y[j, :2] = back @ (truth.centroid - p.mean(axis=0) - base[j]) / 1e3
         y[j, 2] = math.log(truth.area / max(method.area(p), 1.0))
     return x, dt, y
 

@@ -128,11 +128,15 @@ def test_forcing_error_recovers_a_known_drift_error():
     assert np.allclose(E.forcing_error(drifting_history(np.zeros(2), [7.0, -2.0, 0.2, 0.1], hours), E.DriftParameters()),
                        0.0, atol=1e-5)
     assert np.allclose(E.forcing_error(drifting_history(offset, [7.0, -2.0, 0.2, 0.1], [0.0]), E.DriftParameters()), 0.0)
-    # and the corrected prior carries it on over any horizon
+    # and the corrected prior carries it on over any horizon; this straight track under constant forcing
+    # is explained equally well by constant velocity, so it is blended half and half with that
+    weight = E.constant_velocity_weight(obs, E.DriftParameters())
+    assert weight == pytest.approx(0.5)
     for horizon in (2.5, 9.0, 20.0):
         physics, corrected = (E.forecast_plane(k, obs, (horizon,), E.Settings(), contours=False)[0]
                               for k in ("physics", "physics-corrected"))
-        assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * error, atol=0.02 * 2_000.0)
+        assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * ((1 - weight) * error + weight * offset),
+                           atol=0.02 * 2_000.0)
 
 
 def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_one():
@@ -165,6 +169,31 @@ def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_o
                                 ForcingTrack(exact.track.times_s[:len(hours)], exact.track.values[:len(hours)]))
     for obs in (exact, exact_held):
         assert np.allclose(E.forcing_error(obs, params), 0.0, atol=1e-5)
+
+
+def test_constant_velocity_weight_follows_the_straighter_explanation():
+    """Known answers: a slick moving in a straight line while the given wind swings from side to side
+    (steady real forcing, noisy forecast forcing) is explained by constant velocity, weight near 1, and
+    the corrected prior then moves at the observed velocity; a slick carried round by a rotating current
+    exactly as the forcing says is explained by the forcing, weight near 0; two observations give 0."""
+    params = E.DriftParameters()
+    hours = np.arange(0.0, 12.0)
+    velocity = np.array([0.3, -0.1])
+    geoms = [Point(*(velocity * 3600.0 * h)).buffer(1_500.0, quad_segs=16) for h in hours]
+    swinging = np.array([[5.0, 6.0 * (-1) ** k, 0.1, 0.0] for k in range(len(hours))])
+    straight = planar_observations(geoms, hours, swinging)
+    assert E.constant_velocity_weight(straight, params) > 0.9
+    corrected = E.forecast_plane("physics-corrected", straight, (6.0,), E.Settings(), contours=False)[0]
+    expected = F.Shape.of(straight.geometries[-1]).centroid + 6 * 3600.0 * velocity
+    assert np.linalg.norm(corrected.centroid - expected) < 0.1 * np.linalg.norm(6 * 3600.0 * velocity)
+    turning = np.array([[0.0, 0.0, 0.3 * math.cos(0.4 * h), 0.3 * math.sin(0.4 * h)] for h in hours])
+    track = ForcingTrack(3600.0 * hours, turning)
+    from oilspill_moos.forecaster.physics import displacement
+    loop = displacement(track, 0.0, 3600.0 * hours, params.windage, params.deflection_deg)
+    bent = planar_observations([Point(*xy).buffer(1_500.0, quad_segs=16) for xy in loop], hours, turning)
+    assert E.constant_velocity_weight(bent, params) < 0.1
+    two = planar_observations(geoms[:2], hours[:2], swinging[:2])
+    assert E.constant_velocity_weight(two, params) == 0.0
 
 
 def test_physics_corrected_spreads_at_the_observed_area_trend():
