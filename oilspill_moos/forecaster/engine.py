@@ -11,8 +11,9 @@ Kinds (``KINDS``):
   spread by diffusion, with the published default parameters;
 - ``physics-corrected``: the prior with the forcing error estimated from the observed history
   (``forcing_error``): the observed centroids' motion against the forcing-predicted motion gives a
-  drift correction, carried on over the horizon; its footprint is scaled to the observed area trend
-  (``trend_area``, as constant-velocity-growth grows);
+  drift correction, carried on over the horizon, blended with the observed constant velocity as far as
+  a straight line explains the history better than the forcing does (``constant_velocity_weight``);
+  its footprint is scaled to the observed area trend (``trend_area``, as constant-velocity-growth grows);
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
   its drift (residual displacement), its spreading (area ratio) and the spread of its error; the
   footprint never grows past what the observed area trend supports (``trend_area``): no runaway growth
