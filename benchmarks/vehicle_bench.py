@@ -193,7 +193,8 @@ async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--fleets", default="1,10,30", help="vessel counts to measure at warp 10")
+    parser.add_argument("--fleets", default="1,10,30", help="vessel counts to measure at --warp")
+    parser.add_argument("--warp", type=float, default=10.0, help="warp at which --fleets are measured (default 10)")
     parser.add_argument("--warps", default="10,20", help="warps at which to find the largest fleet that keeps up")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--one", action="store_true", help="one vessel at warp 10 only")
@@ -219,11 +220,12 @@ def main() -> None:
         parser.error("--per-process needs K >= 1, and the hosted DB (not --sockets)")
     modes = ("--one-process",) if args.sockets else ("--one-process", "--host-db")
     fleets = [1] if args.one else [int(n) for n in args.fleets.split(",")]
-    kept_up: dict[float, dict[int, bool]] = {10.0: {}}
+    warp = 10.0 if args.one else args.warp
+    kept_up: dict[float, dict[int, bool]] = {warp: {}}
     for vessels in fleets:
-        ms, behind = asyncio.run(run_fleet(vessels, 10.0, args.window, modes, args.per_process))
-        kept_up[10.0][vessels] = not behind
-        print(f"{vessels:3d} vessel(s) at warp 10: {ms:7.2f} ms CPU per vessel per simulated second; "
+        ms, behind = asyncio.run(run_fleet(vessels, warp, args.window, modes, args.per_process))
+        kept_up[warp][vessels] = not behind
+        print(f"{vessels:3d} vessel(s) at warp {warp:g}: {ms:7.2f} ms CPU per vessel per simulated second; "
               f"behind their AppTick: {', '.join(behind) or 'none'}", flush=True)
     if args.one:
         return

@@ -24,6 +24,7 @@ from .message import BINARY, DOUBLE, MOOSMsg
 
 RULE = "%" * 59
 DATATYPE_MARKING = "%% DATATYPE MARKING ON"
+COLUMNS_KEPT = 4096    # AlogWriter's VAR/source columns kept (one per writer of a variable)
 
 
 class AlogFormatError(ValueError):
@@ -67,8 +68,13 @@ def source_field(msg: MOOSMsg, log_aux_src: bool = False, external_community: bo
     return text
 
 
+def alog_columns(key: str, source: str) -> str:
+    """The VAR and source columns of a line, with the blanks after them."""
+    return f"{key:<20} {source:<15} "
+
+
 def format_alog_line(rel_time: float, key: str, source: str, value: str) -> str:
-    return f"{rel_time:<15.5f} {key:<20} {source:<15} {value} \n"
+    return f"{rel_time:<15.5f} {alog_columns(key, source)}{value} \n"
 
 
 @dataclass(frozen=True)
@@ -203,13 +209,14 @@ class AlogWriter:
         self.mark_data_type = mark_data_type
         self._blog_path = self.path.with_suffix(".blog")
         self._blog: BinaryIO | None = None
+        self._columns: dict[tuple[str, str, str, str], str] = {}
         self._stream = open(self.path, "w", encoding="latin-1", newline="\n")
         self._stream.write(alog_header(shown_path or str(self.path), log_start, mark_data_type))
 
     def value_text(self, msg: MOOSMsg) -> str:
         data_type = msg.data_type
         if data_type == DOUBLE:
-            text = format_double(msg.double, self.double_precision)
+            text = f"{msg.double:<12.{self.double_precision}f}"     # format_double, without the call
             return f"D:{text}" if self.mark_data_type else text
         if data_type == BINARY:
             return self._write_binary(msg.binary)
@@ -223,9 +230,22 @@ class AlogWriter:
         return f"<MOOS_BINARY>File={self._blog_path.name},Offset={offset},Bytes={len(payload)}</MOOS_BINARY>"
 
     def line(self, msg: MOOSMsg) -> str:
+        """`format_alog_line` of the message, its VAR and source columns made once per writer (a vessel's
+        pLogger writes a few thousand lines a simulated minute, nearly all from a few dozen writers)."""
+        columns = self._columns.get((msg.key, msg.source, msg.source_aux, msg.community))
+        if columns is None:
+            columns = self._new_columns(msg)
+        return f"{msg.time - self.log_start:<15.5f} {columns}{self.value_text(msg)} \n"
+
+    def _new_columns(self, msg: MOOSMsg) -> str:
+        """The `VAR source ` columns of format_alog_line, kept for the next message of that writer (forgotten
+        every COLUMNS_KEPT: the helm's aux, logged with LogAuxSrc, names its iteration)."""
         external = self.mark_externals and bool(msg.community) and msg.community != self.community
-        source = source_field(msg, self.log_aux_src, external)
-        return format_alog_line(msg.time - self.log_start, msg.key, source, self.value_text(msg))
+        columns = alog_columns(msg.key, source_field(msg, self.log_aux_src, external))
+        if len(self._columns) >= COLUMNS_KEPT:
+            self._columns.clear()
+        self._columns[(msg.key, msg.source, msg.source_aux, msg.community)] = columns
+        return columns
 
     def write(self, msg: MOOSMsg) -> None:
         self._stream.write(self.line(msg))

@@ -22,7 +22,7 @@ from pathlib import Path
 from .client import MOOSClient, resolve
 from .config import Params, read_params
 from .formats import print_page, version_page
-from .message import MOOSMsg
+from .message import MOOSMsg, moos_time
 from .mission import Mission, ProcessConfig, Where, db_address, read_mission
 from .source import MissionFileError
 
@@ -248,13 +248,14 @@ class MOOSApp:
     def _iterate_with_load(self) -> None:
         """`iterate`, with its gap since the last one and its length, both over the AppTick period (1.0:
         a whole period) in MOOS time, posted as <NAME>_ITER_GAP (from the second iteration) and _ITER_LEN."""
-        start = self.moos_time()
+        client, warp = self.client, self.time_warp
+        start = moos_time(warp)
         if self._last_iterate is not None:
-            self.notify(self._iter_gap_key, (start - self._last_iterate) * self.app_tick, start)
+            client.notify(self._iter_gap_key, (start - self._last_iterate) * self.app_tick, start)
         self._last_iterate = start
         self.iterate()
-        now = self.moos_time()
-        self.notify(self._iter_len_key, (now - start) * self.app_tick, now)
+        now = moos_time(warp)
+        client.notify(self._iter_len_key, (now - start) * self.app_tick, now)
 
     def stop(self) -> None:
         self._stopping = True

@@ -279,6 +279,10 @@ class MOOSClient:
             self._next_id += 1
         if not keep_source:
             msg.source = self.name
+        self._send(msg)
+
+    def _send(self, msg: MOOSMsg) -> None:
+        """Queue a numbered, signed message and say there is something to send (unless posts are held)."""
         outbox = self._outbox
         outbox.append(msg)
         if len(outbox) > OUTBOX_LIMIT:
@@ -334,9 +338,12 @@ class MOOSClient:
             self.post(MOOSMsg(UNREGISTER, "D", key, 0.0, time=self.moos_time()))
 
     def notify(self, key: str, value: float | str | bytes, time: float | None = None, source_aux: str = "") -> None:
+        """`post` of a notification, numbered and signed as it is made (apps post about a hundred a
+        simulated second)."""
         self.published.add(key)
-        self.post(MOOSMsg.notification(key, value, time=self.moos_time() if time is None else time,
-                                        source_aux=source_aux))
+        self._send(MOOSMsg.notification(key, value, time=moos_time(self.time_warp) if time is None else time,
+                                        source=self.name, source_aux=source_aux, msg_id=self._next_id))
+        self._next_id += 1
 
     def server_request(self, request: str) -> None:
         """Ask the DB for ALL, VAR_SUMMARY, PROC_SUMMARY or DB_CLEAR; replies arrive as mail (id -2)."""

@@ -32,6 +32,9 @@ SERVER_REQUEST_ID = -2
 ASYNC_TIMING_KEY = "_async_timing"
 
 
+_new = object.__new__
+
+
 def moos_time(time_warp: float = 1.0) -> float:
     """MOOS time: the wall clock scaled by the time warp, as every MOOS process stamps its mail."""
     return _time.time() * time_warp
@@ -63,10 +66,15 @@ class MOOSMsg:
                      source_aux: str = "", msg_id: int = -1) -> "MOOSMsg":
         """A notify carrying a double, string or binary value, typed as the C++ client types it."""
         kind = type(value)
-        if kind is float:     # the usual cases first, at the cost of one type() call
-            return cls(NOTIFY, DOUBLE, key, value, "", b"", source, source_aux, "", time, msg_id)
-        if kind is str:
-            return cls(NOTIFY, STRING, key, -1.0, value, b"", source, source_aux, "", time, msg_id)
+        if kind is float or kind is str:     # the usual cases first, fields set directly (as `copy`)
+            out = _new(MOOSMsg)
+            out.msg_type, out.key, out.binary, out.community, out.double_aux = NOTIFY, key, b"", "", -1.0
+            out.source, out.source_aux, out.time, out.id = source, source_aux, time, msg_id
+            if kind is float:
+                out.data_type, out.double, out.string = DOUBLE, value, ""
+            else:
+                out.data_type, out.double, out.string = STRING, -1.0, value
+            return out
         if isinstance(value, (bytes, bytearray, memoryview)):
             return cls(NOTIFY, BINARY, key, binary=bytes(value), source=source, source_aux=source_aux,
                        time=time, id=msg_id)
@@ -79,9 +87,13 @@ class MOOSMsg:
                    time=time, id=msg_id)
 
     def copy(self) -> "MOOSMsg":
-        """An independent copy (the DB hands each in-process subscriber its own)."""
-        return MOOSMsg(self.msg_type, self.data_type, self.key, self.double, self.string, self.binary, self.source,
-                       self.source_aux, self.community, self.time, self.id, self.double_aux)
+        """An independent copy (the DB hands each in-process subscriber its own), its fields set directly:
+        half the cost of calling the dataclass's __init__."""
+        out = _new(MOOSMsg)
+        out.msg_type, out.data_type, out.key, out.double = self.msg_type, self.data_type, self.key, self.double
+        out.string, out.binary, out.source, out.source_aux = self.string, self.binary, self.source, self.source_aux
+        out.community, out.time, out.id, out.double_aux = self.community, self.time, self.id, self.double_aux
+        return out
 
     @property
     def value(self) -> float | str | bytes:
