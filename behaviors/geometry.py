@@ -315,7 +315,10 @@ def parse_point(text: str) -> tuple[float, float]:
 
 def are_floats(*values) -> bool:
     """Plain numbers, not arrays (numpy's float64 is a float too): single values take plain math."""
-    return all(isinstance(v, float) for v in values)
+    for v in values:      # a loop, not all() over a generator: asked several times every helm iteration
+        if not isinstance(v, float):
+            return False
+    return True
 
 
 def bearing(x1, y1, x2, y2):

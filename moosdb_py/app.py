@@ -375,7 +375,8 @@ class AppTicker:
             self._timer.cancel()
             self._timer = None
         if self.apps:
-            self._wake = next_wake([(a._next_tick, a._tick_slack) for a in self.apps])
+            # apps of a kind tick in step: their (due, slack) pairs once each (15 vessels: 90 apps, ~6 pairs)
+            self._wake = next_wake(list({(a._next_tick, a._tick_slack): None for a in self.apps}))
             self._timer = self.loop.call_at(self._wake, self._run)    # asyncio's clock is time.monotonic
 
     def _run(self) -> None:
