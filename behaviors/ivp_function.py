@@ -59,7 +59,10 @@ def _shift_scale(values: np.ndarray, lo: float, hi: float, k: float) -> tuple[np
     """(values - lo) * k with its (min, max), where lo and hi are the min and max of values.
 
     IEEE rounding is monotone, so for finite hi - lo and a finite k >= 0 the min and max map to
-    (lo - lo) * k and (hi - lo) * k exactly: no scan needed. Otherwise (NaN, infinities) they are measured."""
+    (lo - lo) * k and (hi - lo) * k exactly: no scan needed. Otherwise (NaN, infinities) they are measured.
+    Shifting by 0 and scaling by 1 (`couple`'s second step, mostly) leaves the values as they are: no copy."""
+    if lo == 0.0 and k == 1.0:
+        return values, lo, hi
     out = (values - lo) * k
     if k >= 0 and math.isfinite(k) and math.isfinite(hi - lo):
         return out, (lo - lo) * k, (hi - lo) * k

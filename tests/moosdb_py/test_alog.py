@@ -4,8 +4,9 @@ from datetime import datetime
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from moosdb_py import alog
 from moosdb_py.alog import (AlogFormatError, AlogWriter, alog_header, format_alog_line, format_double,
-                            log_root_name, parse_alog_line, read_alog)
+                            log_root_name, parse_alog_line, read_alog, source_field)
 from moosdb_py.message import MOOSMsg
 
 START = 1708009923.123456
@@ -136,3 +137,30 @@ def test_multi_line_values_read_back_whole(tmp_path):
     assert [(e.key, e.value) for e in log.entries] == [
         ("DB_VARSUMMARY", summary), ("NOTE", "a\n\nb 12 c\nd"), ("NAV_X", 3.0), ("LINES", "1\n2")]
     assert [e.line for e in log.entries] == [6, 9, 13, 14]
+
+
+@settings(max_examples=40, deadline=None)
+@given(msgs=st.lists(st.tuples(st.sampled_from(["NAV_X", "WPT_STAT", "A_VERY_LONG_VARIABLE_NAME_INDEED"]),
+                               st.sampled_from(["uSim", "pHelmIvP", "a_source_longer_than_15"]),
+                               st.sampled_from(["", "41:waypt", "42:waypt"]), st.sampled_from(["", "alpha", "bravo"]),
+                               st.one_of(st.floats(-1e6, 1e6, allow_nan=False), STRINGS)), max_size=30),
+       aux=st.booleans(), externals=st.booleans(), marked=st.booleans(), kept=st.integers(1, 4))
+def test_writer_lines_are_format_alog_line_of_each_message(tmp_path_factory, msgs, aux, externals, marked, kept):
+    """The writer keeps each writer's VAR/source columns (a few at a time): every line is still the one
+    format_alog_line, source_field and format_double give for that message alone."""
+    writer = AlogWriter(tmp_path_factory.mktemp("w") / "w.alog", START, log_aux_src=aux, mark_externals=externals,
+                        community="alpha", mark_data_type=marked)
+    kept_before, alog.COLUMNS_KEPT = alog.COLUMNS_KEPT, kept
+    try:
+        for key, source, source_aux, community, value in msgs:
+            msg = MOOSMsg.notification(key, value, time=START + 1.5, source=source, source_aux=source_aux)
+            msg.community = community
+            external = externals and community not in ("", "alpha")
+            text = format_double(value) if isinstance(value, float) else value
+            if marked:
+                text = ("D:" if isinstance(value, float) else "S:") + text
+            assert writer.line(msg) == format_alog_line(1.5, key, source_field(msg, aux, external), text)
+            assert len(writer._columns) <= kept
+    finally:
+        alog.COLUMNS_KEPT = kept_before
+        writer.close()
