@@ -74,6 +74,7 @@ class MOOSApp:
         self._last_iterate: float | None = None   # MOOS time of the previous iteration
         self.client = MOOSClient(self.name, "127.0.0.1" if host == "localhost" else host, port,
                                  on_mail=self._on_mail, on_connect=self._on_connect, time_warp=self.time_warp)
+        self.client.shared_mail = True   # hosted in-process, its mail is shared with the other apps: read, not changed
         self.start_time = self.moos_time()
         self.iterations = 0
         self.ticks_missed = 0   # AppTick periods that passed with no iteration: the app fell behind its AppTick

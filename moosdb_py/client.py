@@ -47,6 +47,7 @@ class MOOSClient:
                  on_connect: Callable[[], None] | None = None, time_warp: float = 1.0, local_db=None):
         self.name, self.host, self.port = name, host, port
         self.local_db = local_db    # a MOOSDB in this event loop: connect through `open_local`, no socket
+        self.shared_mail = False    # in-process: mail is the DB's own message, shared, not a copy (read, never changed)
         self.on_mail, self.on_connect = on_mail, on_connect
         self.time_warp = time_warp
         self.connected = False
@@ -184,7 +185,7 @@ class MOOSClient:
         MOOSMsgs. A timing message goes with the first batch a second after the last one (a MOOSApp's
         AppTick sends one then, `send_held`); a keep-alive timer, moved on by each, sends one alone only
         when none went for KEEPALIVE_DELAY: while its app ticks, the connection wakes the loop for nothing."""
-        link = db.open_local(self._hello())
+        link = db.open_local(self._hello(), self.shared_mail)
         loop = asyncio.get_running_loop()
         keepalive = loop.call_soon(link.kick)     # the first timing message, at once
 

@@ -106,7 +106,7 @@ class DBVar:
 class DBClient:
     """One connection as the DB knows it: handshake state, held mail, subscriptions (spec §5)."""
 
-    __slots__ = ("handle", "peer", "local", "state", "framer", "scanner", "name", "asynchronous", "consolidation",
+    __slots__ = ("handle", "peer", "local", "shared", "state", "framer", "scanner", "name", "asynchronous", "consolidation",
                  "held", "held_count", "held_bytes", "outgoing", "end", "subscribed", "published", "filters", "opened",
                  "last_rx", "packets_in", "latency", "drop_reason")
 
@@ -114,6 +114,7 @@ class DBClient:
         self.handle = handle            # the shell's token for the connection (its transport, a test's label)
         self.peer = peer
         self.local = local              # in-process (`connect_local`): held and outgoing hold MOOSMsgs, not bytes
+        self.shared = False             # in-process and given the DB's own messages, not copies (`connect_local`)
         self.state = PROTOCOL
         self.framer = codec.StreamFramer(protocol_slot=True, max_packet=max_packet)
         self.scanner = codec.PacketScanner()
@@ -187,10 +188,15 @@ class MOOSDBCore:
         self.connections.add(client)
         return client
 
-    def connect_local(self, handle: Any, hello: MOOSMsg, now: float) -> tuple[DBClient, Iterable[Outgoing]]:
+    def connect_local(self, handle: Any, hello: MOOSMsg, now: float,
+                      shared_mail: bool = False) -> tuple[DBClient, Iterable[Outgoing]]:
         """An in-process client's connection, its handshake done at once: the welcome (or the poison that
-        refuses it) is its first mail. It then talks in MOOSMsgs (`receive_local`), without bytes."""
+        refuses it) is its first mail. It then talks in MOOSMsgs (`receive_local`), without bytes. Its mail
+        is each subscriber's own copy, or with `shared_mail` the message the DB keeps, the same object
+        for every such subscriber (a client that never changes its mail: a copy per post and subscriber
+        was a tenth of a hosted vessel's routing)."""
         client = DBClient(handle, "in-process", now, self.max_packet, local=True)
+        client.shared = shared_mail
         self.connections.add(client)
         client.state = NAME
         self._admit(client, hello, now)
@@ -523,7 +529,7 @@ class MOOSDBCore:
             if client.local:
                 if decoded is None:
                     decoded = codec.decode_run(chunk, count)[0]
-                self._queue_messages(client, [m.copy() for m in decoded[:n]])
+                self._queue_messages(client, decoded[:n] if client.shared else [m.copy() for m in decoded[:n]])
             else:
                 self._queue(client, wire, n)
 
@@ -553,7 +559,7 @@ class MOOSDBCore:
             if not client.local:
                 self._queue(client, var.wire, 1)
             elif client.state != CLOSED:
-                client.held.append(msg.copy())
+                client.held.append(msg if client.shared else msg.copy())
                 client.held_count += 1
                 ready[client] = None
 

@@ -68,7 +68,7 @@ class LocalLink:
     one socket clients get, so the mail is the same (tests/moosdb_py/test_local_connection.py).
     """
 
-    def __init__(self, db: "MOOSDB", hello: MOOSMsg):
+    def __init__(self, db: "MOOSDB", hello: MOOSMsg, shared_mail: bool = False):
         self.db = db
         self.take: Callable[[], list[MOOSMsg]] | None = None     # set by `attach`
         self.deliver: Callable[[list[MOOSMsg]], None] | None = None
@@ -76,7 +76,7 @@ class LocalLink:
         self.ended = False
         self.error: BaseException | None = None   # what the client's `deliver` raised (its session re-raises it)
         self.wake: asyncio.Future | None = None   # the client's wait, resolved when the connection ends
-        self.client, outgoing = db.core.connect_local(self, hello, db.now())
+        self.client, outgoing = db.core.connect_local(self, hello, db.now(), shared_mail)
         db.transmit(outgoing)
 
     def attach(self, take: Callable[[], list[MOOSMsg]], deliver: Callable[[list[MOOSMsg]], None]) -> None:
@@ -180,12 +180,13 @@ class MOOSDB:
         finally:
             self.close()
 
-    def open_local(self, hello: MOOSMsg) -> LocalLink:
+    def open_local(self, hello: MOOSMsg, shared_mail: bool = False) -> LocalLink:
         """A connection for a client in this process and event loop, without a socket (pAntler --host-db);
-        `hello` is the client's handshake message, answered in the link's `replies`."""
+        `hello` is the client's handshake message, answered in the link's `replies`; `shared_mail`: see
+        `MOOSDBCore.connect_local`."""
         if not self._serving:
             raise ConnectionRefusedError(f"{self.name} is not serving")
-        return LocalLink(self, hello)
+        return LocalLink(self, hello, shared_mail)
 
     def kick(self, link: LocalLink) -> None:
         """Take `link`'s batch later in this loop pass, with every other in-process client's."""

@@ -131,7 +131,8 @@ class moos_msg:  # noqa: N801 - pymoos's names throughout
 
     def mark_as_binary(self) -> None:
         msg = self._msg
-        if not msg.is_binary():
+        if not msg.is_binary():     # changed on a copy: hosted in-process, other apps share the message
+            self._msg = msg = msg.copy()
             msg.binary, msg.string, msg.data_type = msg.sval_bytes, "", BINARY
 
     def trace(self) -> None:

@@ -93,9 +93,11 @@ POSTS = st.lists(st.tuples(st.sampled_from(("pub_local", "pub_tcp")), st.floats(
 def test_core_gives_a_local_and_a_socket_subscriber_the_same_mail(posts, intervals):
     """The same batches, from an in-process and a socket publisher, at the same times: the in-process
     subscriber gets, message for message and field for field, what the socket subscriber decodes
-    (throttled registrations, a wildcard, type clashes, text outside latin-1, binary values)."""
+    (throttled registrations, a wildcard, type clashes, text outside latin-1, binary values); one that
+    shares its mail (`shared_mail`: MOOSApps) gets the same, the messages the DB keeps rather than copies."""
     core = MOOSDBCore(now=0.0, hostname="vm")
-    mail: dict[str, list[MOOSMsg]] = {"sub_local": [], "sub_tcp": [], "pub_local": [], "pub_tcp": []}
+    mail: dict[str, list[MOOSMsg]] = {"sub_local": [], "sub_shared_local": [], "sub_tcp": [], "pub_local": [],
+                                      "pub_tcp": []}
 
     def take(outgoing):
         for client, data, end in outgoing:
@@ -106,7 +108,7 @@ def test_core_gives_a_local_and_a_socket_subscriber_the_same_mail(posts, interva
     for name in mail:
         hello = MOOSMsg("i", STRING, "asynchronous", string=name, time=0.0)
         if name.endswith("local"):
-            clients[name], outgoing = core.connect_local(name, hello, 0.0)
+            clients[name], outgoing = core.connect_local(name, hello, 0.0, shared_mail="shared" in name)
             take(outgoing)
         else:
             clients[name] = core.connect(name, "127.0.0.1:1", 0.0)
@@ -118,7 +120,7 @@ def test_core_gives_a_local_and_a_socket_subscriber_the_same_mail(posts, interva
         else:
             take(core.receive(clients[name], codec.encode_packet(msgs), now))
 
-    for name in ("sub_local", "sub_tcp"):
+    for name in ("sub_local", "sub_shared_local", "sub_tcp"):
         send(name, [MOOSMsg(REGISTER, "D", "X", intervals[0], source=name, time=0.0),
                     MOOSMsg(REGISTER, "D", "Y", intervals[1], source=name, time=0.0),
                     MOOSMsg(WILDCARD_REGISTER, STRING, name, string="AppPattern=*,VarPattern=W*,Interval=0",
@@ -133,7 +135,9 @@ def test_core_gives_a_local_and_a_socket_subscriber_the_same_mail(posts, interva
         send(publisher, msgs, now)
     fields = [f for f in MOOSMsg.__slots__]
     assert [[getattr(m, f) for f in fields] for m in mail["sub_local"]] == \
-        [[getattr(m, f) for f in fields] for m in mail["sub_tcp"]]
+        [[getattr(m, f) for f in fields] for m in mail["sub_tcp"]] == \
+        [[getattr(m, f) for f in fields] for m in mail["sub_shared_local"]]
+    assert not {id(m) for m in mail["sub_local"]} & {id(m) for m in mail["sub_shared_local"]}
     assert mail["sub_tcp"]        # every key is subscribed: at least the first post of each went out
 
 
