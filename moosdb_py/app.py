@@ -11,6 +11,7 @@ import heapq
 import inspect
 import logging
 import os
+import random
 import re
 import resource
 import signal
@@ -33,6 +34,9 @@ DEFAULT_COMMS_TICK = 5.0
 STATUS_PERIOD = 2.0
 TICK_SLACK = 0.25   # share of its AppTick period by which an iteration may run early or late (apps sharing
                     # an event loop then wake together: each wake-up of a loaded machine costs ~0.1 ms of CPU)
+TICK_PHASE = random.random()   # ticks fall on multiples of the period from this instant (monotonic s): the same
+                               # for every app of a process, so they wake together; another process's vessels
+                               # wake at other instants, not all at once when processes outnumber the cores
 RETRY_NOTICE_PERIOD = 10.0   # seconds between "connecting ... retrying" lines while no DB answers
 BEHIND_SHARE = 0.02   # an app that missed more than this share of the AppTicks due fell behind its AppTick
 _STATUS_TICKS = re.compile(r"MOOSName=([^,]*),Iterations=(\d+),TicksMissed=(\d+)")
@@ -185,7 +189,7 @@ class MOOSApp:
             now = _time.monotonic()
             self._next_status = now
             period = self._tick_period()
-            self._next_tick = now // period * period
+            self._next_tick = (now - TICK_PHASE) // period * period + TICK_PHASE
             self._comms = comms
             if not self._stop.is_set():
                 self._tick(now)
@@ -214,7 +218,7 @@ class MOOSApp:
         """One AppTick at monotonic time `now` (mail, iterate, status), run by the `AppTicker`; what it raises
         ends `run_async` with it.
 
-        Ticks are due on multiples of the period (of the monotonic clock). When late, the latest
+        Ticks are due on multiples of the period (from TICK_PHASE on the monotonic clock). When late, the latest
         tick due runs at once and the whole periods before it count as missed."""
         self.client.hold_posts()       # the tick's posts go as one batch when it ends (in-process: when the wake-up ends)
         try:
