@@ -164,3 +164,12 @@ def test_writer_lines_are_format_alog_line_of_each_message(tmp_path_factory, msg
     finally:
         alog.COLUMNS_KEPT = kept_before
         writer.close()
+
+
+@settings(max_examples=200, deadline=None)
+@given(value=st.floats(allow_nan=True, allow_infinity=True), precision=st.integers(0, 15),
+       key=WORDS, source=WORDS)
+def test_printf_templates_give_the_format_spec_layout(value, precision, key, source):
+    """The templates pLogger formats with lay numbers out as the f-string specs they replace, for any double."""
+    assert format_double(value, precision) == f"{value:<12.{precision}f}"
+    assert format_alog_line(value, key, source, "v") == f"{value:<15.5f} {key:<20} {source:<15} v \n"
