@@ -317,7 +317,7 @@ class IvPBehavior:
         self.state = state
         status = f"name={self.name}" + (f",pc={failed}" if failed is not None and state == "idle" else "")
         status += f",updates={self.good_updates}/{self.good_updates + self.bad_updates},state={state}"
-        self.post("BHV_STATUS", status + (f",pwt={fn.pwt:g}" if fn is not None else ""))
+        self.post("BHV_STATUS", status + (",pwt=%g" % fn.pwt if fn is not None else ""))
         return fn
 
     def _idle(self, prev: str) -> None:

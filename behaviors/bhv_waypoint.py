@@ -487,7 +487,7 @@ class BHV_Waypoint(IvPBehavior):
         eta = dist / speed if speed and speed > 0 else 0.0
         hits = self.capture_hits + self.slip_hits
         self.post_report(self.status_var, f"vname={self.ownship},behavior-name={self.name},index={self.ix},"
-                  f"hits={self.capture_hits}/{hits},cycles={self.cycles},dist={dist:.0f},eta={eta:.0f}")
+                  f"hits={self.capture_hits}/{hits},cycles={self.cycles}," + "dist=%.0f,eta=%.0f" % (dist, eta))
         if self.dist_next_var:
             self.post(self.dist_next_var, round(dist, 2))
         if self.dist_prev_var:
