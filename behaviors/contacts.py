@@ -210,7 +210,7 @@ def cpa_range(osx: float, osy: float, osh: float, osv: float,
     rx, ry = osx - cnx, osy - cny
     vx, vy = _relative_velocity(osh, osv, cnh, cnv)
     vv = vx * vx + vy * vy
-    t = min(max(-(vx * rx + vy * ry) / vv, 0.0), horizon) if vv > 1e-12 else 0.0
+    t = min(max(-(vx * rx + vy * ry) / max(vv, 1e-12), 0.0), horizon)    # as leg_cpa, even below 1e-6 m/s
     return math.hypot(rx + vx * t, ry + vy * t)
 
 
