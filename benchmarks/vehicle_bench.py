@@ -150,14 +150,15 @@ async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, 
                 await asyncio.wait(tasks, timeout=5)
 
 
-async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str, str]) -> tuple[float, float, list[str]]:
+async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str, str],
+                       per_process: int = 1) -> tuple[float, float, list[str]]:
     """(CPU ms per oil-spill vessel, CPU ms of the shoreside) per simulated second, and the apps that fell
     behind their AppTick: missions/oilspill's communities (oilspill_mission.OilspillMission, each pAntler
-    --one-process --host-db), deployed."""
+    --one-process --host-db, `per_process` vessels to a pAntler), deployed."""
     from oilspill_moos.oilspill_mission import Observer, OilspillMission, wait_for
 
     with tempfile.TemporaryDirectory(prefix="vehicle_bench_oilspill_") as tmp:
-        mission = OilspillMission(Path(tmp), vehicles=vessels, warp=warp, extra=extra)
+        mission = OilspillMission(Path(tmp), vehicles=vessels, warp=warp, extra=extra, vessels_per_process=per_process)
         with mission:
             observer = Observer("127.0.0.1", mission.shoreside.moos_port, warp)
             task = asyncio.create_task(observer.client.run())
@@ -174,10 +175,10 @@ async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str
                 await asyncio.sleep(SETTLE)
                 names = [c.name for c in mission.communities]
                 before = tick_counts(watchers, names)
-                pids = {c.name: c.process.pid for c in mission.communities}
-                cpu0, t0 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
+                pids = {group[0].process.pid: group[0].name == "shoreside" for group in mission.processes()}
+                cpu0, t0 = {p: tree_cpu(p) for p in pids}, time.monotonic()
                 await asyncio.sleep(window)
-                cpu1, t1 = {n: tree_cpu(p) for n, p in pids.items()}, time.monotonic()
+                cpu1, t1 = {p: tree_cpu(p) for p in pids}, time.monotonic()
                 await asyncio.sleep(2.5)      # one more status from every app
                 late = behind(before, tick_counts(watchers, names))
             finally:
@@ -186,8 +187,8 @@ async def run_oilspill(vessels: int, warp: float, window: float, extra: dict[str
                     watcher.close()
                 await asyncio.wait(tasks, timeout=5)
     simulated = (t1 - t0) * warp
-    fleet = sum(cpu1[n] - cpu0[n] for n in mission.fleet)
-    shore = cpu1["shoreside"] - cpu0["shoreside"]
+    fleet = sum(cpu1[p] - cpu0[p] for p, shore in pids.items() if not shore)   # each process once
+    shore = sum(cpu1[p] - cpu0[p] for p, shore in pids.items() if shore)
     return 1000 * fleet / simulated / vessels, 1000 * shore / simulated, late
 
 
@@ -211,7 +212,8 @@ def main() -> None:
     if args.oilspill:
         ticks = {"SIM_TICK": "4", "HELM_TICK": "2"} if args.demo_ticks else {}
         for warp in (float(w) for w in args.warps.split(",")):
-            vessel_ms, shore_ms, late = asyncio.run(run_oilspill(args.oilspill, warp, args.window, ticks))
+            vessel_ms, shore_ms, late = asyncio.run(run_oilspill(args.oilspill, warp, args.window, ticks,
+                                                                 args.per_process))
             print(f"{args.oilspill:3d} oil-spill vessel(s) at warp {warp:g}: {vessel_ms:7.2f} ms CPU per vessel per "
                   f"simulated second; shoreside {shore_ms:7.2f} ms per simulated second; behind their AppTick: "
                   f"{', '.join(late) or 'none'}", flush=True)
