@@ -466,7 +466,7 @@ def main(argv=None, args=None) -> int:
     args = args or build_parser().parse_args(argv)
     torch.set_num_threads(1)
     calibration = read_calibration(args.weights)
-    settings = E.Settings(E.DriftParameters.from_dict(calibration.get("drift", {})), calibration.get("spread_scale", {}))
+    settings = E.Settings.from_calibration(calibration)
     scenarios = D.load_dataset(args.dataset or D.GULF_STEM)
     split = D.split_scenarios(scenarios)
     correctors = load_correctors(args.weights, LEARNED_KINDS)
