@@ -327,18 +327,18 @@ def fit_gains(cases, corrector, params: DriftParameters, horizons_h=F.HORIZONS_H
     ``GAIN_FACTORS`` whose forecasts have the highest mean IoU on ``cases`` (validation cases). The
     residual moves the corrected prior's footprint rigidly, so each candidate is the prior's
     footprint translated by its share of the residual drift."""
-    from .evaluate import iou
+    from .evaluate import iou, valid
 
     plain = E.Settings(params)
     scores = np.zeros((len(GAIN_FACTORS), len(horizons_h)))
     for case, correction in zip(cases, corrector.corrections([c.obs for c in cases], params)):
-        prior = E.forecast_plane("physics-corrected", case.obs, horizons_h, plain, contours=False)
+        prior = [valid(f.geometry) for f in E.forecast_plane("physics-corrected", case.obs, horizons_h, plain, contours=False)]
+        truth = [valid(t) for t in case.truth]
         residual = correction.at(tuple(horizons_h)).drift_m
         weight = E.constant_velocity_weight(case.obs, params)
         for i, factor in enumerate(GAIN_FACTORS):
             share = np.clip(factor * (1.0 - weight), 0.0, 1.0)
-            scores[i] += [iou(affinity.translate(f.geometry, *(share * r)), truth)
-                          for f, r, truth in zip(prior, residual, case.truth)]
+            scores[i] += [iou(affinity.translate(g, *(share * r)), t) for g, r, t in zip(prior, residual, truth)]
     return [GAIN_FACTORS[i] for i in scores.argmax(axis=0)]
 
 
