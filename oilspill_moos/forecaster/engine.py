@@ -14,10 +14,13 @@ Kinds (``KINDS``):
   drift correction, carried on over the horizon, blended with the observed constant velocity as far as
   a straight line explains the history better than the forcing does (``constant_velocity_weight``);
   its footprint is scaled to the observed area trend (``trend_area``, as constant-velocity-growth grows);
-- ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior with a learned correction of
-  its drift (residual displacement), its spreading (area ratio) and the spread of its error; the
-  footprint never grows past what the observed area trend supports (``trend_area``): no runaway growth
-  from sparse, unforced observations of a shrinking slick.
+- ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior moved on by a learned
+  residual drift, and the ensemble widened by the learned spread of its error. The residual is scaled
+  by a gain fitted on the validation split (``Settings.gain``): it is trusted less where the history
+  is a straight line that constant velocity explains, and on held-out data an ungated residual made
+  steady-forcing forecasts worse than the prior. The learned area ratio shapes the particle cloud,
+  but the footprint is scaled to the observed area trend as physics-corrected's is: out of
+  distribution (another footprint method) the learned area was biased low (docs/forecaster.md).
 
 Every kind forecasts at any horizon: the physics moves particles to any time; the learned correction,
 trained at ``features.HORIZONS_H``, is interpolated linearly in the horizon between them (from zero at
@@ -42,7 +45,7 @@ from shapely.geometry import MultiPolygon
 from shapely.geometry.base import BaseGeometry
 
 from . import features as F
-from .kinds import BASELINE_KINDS
+from .kinds import BASELINE_KINDS, LEARNED_KINDS
 from .physics import DriftParameters, ForcingTrack, Grid, ParticleFootprint, displacement, drift, drift_velocity, probability
 
 TREND_H = 6.0                  # constant-velocity fits the observations of the last 6 h
@@ -191,13 +194,14 @@ def window_inputs(obs: Observations, params: DriftParameters) -> tuple[np.ndarra
                              cv_weight=constant_velocity_weight(obs, params))
 
 
-def history_correction(obs: Observations, params: DriftParameters, horizons_h) -> "Correction":
+def history_correction(obs: Observations, params: DriftParameters, horizons_h, weight: float | None = None) -> "Correction":
     """The prior's correction from the observed history, per horizon: its drift error (``forcing_error``)
-    carried on, blended with the observed constant velocity by ``constant_velocity_weight``."""
+    carried on, blended with the observed constant velocity by ``weight`` (default:
+    ``constant_velocity_weight``)."""
     horizons = tuple(horizons_h)
     horizons_s = 3600.0 * np.asarray(horizons, float)
     drift_m = horizons_s[:, None] * forcing_error(obs, params)[None, :]
-    weight = constant_velocity_weight(obs, params)
+    weight = constant_velocity_weight(obs, params) if weight is None else weight
     if weight > 0:
         velocity, _ = trend(obs)
         forced = displacement(obs.track, 0.0, horizons_s, params.windage, params.deflection_deg)
@@ -329,6 +333,10 @@ class Correction:
 
         return Correction(along(self.drift_m), along(self.log_area), along(self.sigma_m), tuple(horizons_h))
 
+    def gained(self, gain: np.ndarray) -> "Correction":
+        """The drift scaled by ``gain`` [H] (the spread and area ratio kept)."""
+        return Correction(self.drift_m * np.asarray(gain, float)[:, None], self.log_area, self.sigma_m, self.horizons_h)
+
     def plus(self, other: "Correction") -> "Correction":
         """Both corrections at this one's horizons: drifts and log area ratios add, spreads add in quadrature."""
         other = other.at(self.horizons_h)
@@ -360,6 +368,13 @@ class Settings:
     params: DriftParameters = field(default_factory=DriftParameters)
     spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors at F.HORIZONS_H
     members: int = MEMBERS
+    residual_gain: dict = field(default_factory=dict)  # learned kind -> [H] gain factors at F.HORIZONS_H
+
+    @classmethod
+    def from_calibration(cls, blob: dict) -> "Settings":
+        """The settings a ``calibration.json`` holds (defaults for what it lacks)."""
+        return cls(DriftParameters.from_dict(blob.get("drift", {})), blob.get("spread_scale", {}),
+                   residual_gain=blob.get("residual_gain", {}))
 
     @staticmethod
     def scale_key(kind: str, forcing_ahead: bool = True) -> str:
@@ -374,6 +389,17 @@ class Settings:
         if factors is None:
             return np.ones(len(horizons_h))
         return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
+
+
+    def gain(self, kind: str, horizons_h, forcing_ahead: bool, weight: float) -> np.ndarray:
+        """[H] share of a learned residual drift kept: clip(factor x (1 - ``weight``), 0, 1), ``weight`` the
+        history's ``constant_velocity_weight`` and the factor fitted per horizon on the validation
+        split (``train.fit_gains``); the whole residual where none was fitted."""
+        factors = self.residual_gain.get(self.scale_key(kind, forcing_ahead))
+        if factors is None:
+            return np.ones(len(horizons_h))
+        factor = np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
+        return np.clip(factor * (1.0 - weight), 0.0, 1.0)
 
 
 def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations, float, np.ndarray]:
@@ -398,12 +424,20 @@ def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations,
 
 def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
                    correction: Correction | None = None, contours: bool = True) -> list[PlanarForecast]:
-    """Forecasts on ``obs.plane`` for each horizon (computed in the spill's own frame, ``canonical``)."""
-    if kind == "physics-corrected":
-        correction = history_correction(obs, settings.params, horizons_h)
+    """Forecasts on ``obs.plane`` for each horizon (computed in the spill's own frame, ``canonical``).
+    ``correction``: a learned model's residual (``models.Corrector``), added to the history's correction
+    of the prior by ``settings.gain``; physics-corrected takes the history's correction alone."""
+    if kind not in BASELINE_KINDS + LEARNED_KINDS:
+        raise ValueError(f"unknown forecaster kind {kind!r}: one of {BASELINE_KINDS + LEARNED_KINDS}")
+    if kind == "physics-corrected" or correction is not None:
+        weight = constant_velocity_weight(obs, settings.params)
+        base = history_correction(obs, settings.params, horizons_h, weight)
+        if correction is not None:
+            gain = settings.gain(kind, horizons_h, obs.forcing_ahead, weight)
+            base = base.plus(correction.at(tuple(horizons_h)).gained(gain))
+        correction = base
     frame, angle, origin = canonical(obs, settings.params)
     if correction is not None:
-        correction = correction.at(tuple(horizons_h))
         turn = F.rotation(-angle)
         correction = Correction(correction.drift_m @ turn.T, correction.log_area, correction.sigma_m, correction.horizons_h)
 
@@ -436,14 +470,9 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         drawn = [method.draw(p) for p in moved]
         geometries = [d[2] for d in drawn]
         masks = [(d[0], d[1]) for d in drawn]
-        if kind == "physics-corrected":     # spreading corrected too: scaled to the observed area trend
+        if correction is not None:          # spreading corrected too: scaled to the observed area trend
             geometries = [scaled_to(g, trend_area(obs, h)) for g, h in zip(geometries, horizons_s)]
             masks = [None] * len(geometries)
-        elif correction is not None:        # learned growth bounded by the observed area trend
-            for j, h in enumerate(horizons_s):
-                bound = trend_area(obs, h)
-                if geometries[j].area > bound:
-                    geometries[j], masks[j] = scaled_to(geometries[j], bound), None
     out = []
     for j, h in enumerate(horizons_h):
         offsets = raw[j] * scale[j]

@@ -28,9 +28,16 @@ COVERAGE_LEVELS = (0.5, 0.8, 0.9, 0.95)
 
 
 def iou(a, b) -> float:
-    a, b = (g if g.is_valid else shapely.make_valid(g) for g in (a, b))
-    union = shapely.union(a, b).area
-    return float(shapely.intersection(a, b).area / union) if union > 0 else 0.0
+    """Intersection over union of two areas (repaired first when invalid: a self-touching footprint)."""
+    a, b = (valid(g) for g in (a, b))
+    overlap = shapely.intersection(a, b).area
+    union = a.area + b.area - overlap
+    return float(overlap / union) if union > 0 else 0.0
+
+
+def valid(geometry):
+    """``geometry`` itself when valid, else repaired (``make_valid``)."""
+    return geometry if geometry.is_valid else shapely.make_valid(geometry)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -466,7 +473,7 @@ def main(argv=None, args=None) -> int:
     args = args or build_parser().parse_args(argv)
     torch.set_num_threads(1)
     calibration = read_calibration(args.weights)
-    settings = E.Settings(E.DriftParameters.from_dict(calibration.get("drift", {})), calibration.get("spread_scale", {}))
+    settings = E.Settings.from_calibration(calibration)
     scenarios = D.load_dataset(args.dataset or D.GULF_STEM)
     split = D.split_scenarios(scenarios)
     correctors = load_correctors(args.weights, LEARNED_KINDS)

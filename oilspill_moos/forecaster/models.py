@@ -248,21 +248,15 @@ class Corrector:
                              "number of sub-steps); the fused solver stays bounded for any step: use --model ltc-fused")
         return mean, sigma
 
-    def inputs(self, obs, params):
-        """(features, elapsed hours, frame angle, the prior's history correction) of one ``Observations``."""
-        from .engine import history_correction, window_inputs
-
-        x, dt, angle = window_inputs(obs, params)
-        return x, dt, angle, history_correction(obs, params, self.horizons_h)
-
     def corrections(self, observations, params) -> list:
-        """One ``engine.Correction`` per ``Observations`` (one batched model call): the prior's own
-        correction from the observed history (``engine.history_correction``) plus what the model adds."""
-        from .engine import correction_from
+        """One ``engine.Correction`` per ``Observations`` (one batched model call): what the model adds
+        to the prior's own correction from the observed history (``engine.history_correction``, added
+        by ``engine.forecast_plane``)."""
+        from .engine import correction_from, window_inputs
 
-        inputs = [self.inputs(obs, params) for obs in observations]
+        inputs = [window_inputs(obs, params) for obs in observations]
         mean, sigma = self.predict(np.array([i[0] for i in inputs]), np.array([i[1] for i in inputs]))
-        return [correction_from(m, s, i[2]).plus(i[3]) for m, s, i in zip(mean, sigma, inputs)]
+        return [correction_from(m, s, i[2]) for m, s, i in zip(mean, sigma, inputs)]
 
     def correction(self, obs, params):
         return self.corrections([obs], params)[0]

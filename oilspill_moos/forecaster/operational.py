@@ -59,15 +59,13 @@ class Forecaster:
         calibration_path = weights_dir / "calibration.json"
         self.calibration = json.loads(calibration_path.read_text()) if calibration_path.is_file() else {}
         from . import engine as E
-        from .physics import DriftParameters
 
         self.corrector = None
         if kind in LEARNED_KINDS:
             from .models import Corrector            # torch only for the learned kinds
 
             self.corrector = Corrector.load(weights_dir / f"{kind}.pt")
-        params = DriftParameters.from_dict(self.calibration.get("drift", {}))
-        self.settings = E.Settings(params, self.calibration.get("spread_scale", {}))
+        self.settings = E.Settings.from_calibration(self.calibration)
         self.horizons_h = F.HORIZONS_H
         self.split = self.calibration.get("split", {"train": [], "val": [], "test": []})
 

@@ -12,10 +12,13 @@ Loss: MSE on the scaled targets, plus a Gaussian negative log-likelihood for the
 *detached* mean (so the spread never changes what the mean learns). AdamW, early stopping on the
 validation MSE, one CPU thread per model; ``--max-minutes`` caps each model's wall time.
 
+Gains (``fit_gains``): on the validation cases, per horizon, how much of a learned kind's residual drift
+to keep (``engine.Settings.gain``), the share with the highest mean IoU.
+
 Calibration (``calibrate``): on the validation cases every kind forecasts, and per horizon its ensemble
 spread is scaled so that the nominal 95 % radius (``engine.RADIUS_95`` x ``uncertainty_m``) holds the
 true centroid in 95 % of them, in each forcing family (steady, varying) of the validation split. The
-factors go to ``calibration.json`` beside the weights, with the prior's parameters and the training
+gains and factors go to ``calibration.json`` beside the weights, with the prior's parameters and the training
 record.
 """
 from __future__ import annotations
@@ -36,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from shapely import affinity
 from torch import nn
 from tqdm import tqdm
 
@@ -299,18 +303,43 @@ def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F
     with ``groups`` (a label per case), 95 % of each group's: the largest of the groups' factors
     (group-wise conformal), so a forecast is covered whichever kind of case it is."""
     labels = np.asarray(groups if groups is not None else [""] * len(cases))
+    unscaled = E.Settings(settings.params, {}, settings.members, settings.residual_gain)
     factors = {}
     for kind in kinds:
         ratios = []
         corrections = (correctors[kind].corrections([c.obs for c in cases], settings.params) if kind in correctors
                        else [None] * len(cases))
         for case, correction in zip(cases, corrections):
-            out = E.forecast_plane(kind, case.obs, horizons_h, E.Settings(settings.params, {}, settings.members),
-                                   correction, contours=False)
+            out = E.forecast_plane(kind, case.obs, horizons_h, unscaled, correction, contours=False)
             ratios.append([np.linalg.norm(f.centroid - t.centroid) / max(f.raw_spread_m, 1e-6)
                            for f, t in zip(out, case.truth_shapes)])
         factors[kind] = groupwise_factors(np.array(ratios), labels)
     return factors
+
+
+# Gain factors tried per horizon (``fit_gains``): 0 keeps the prior alone, large ones the whole residual
+# wherever the history is not a straight line.
+GAIN_FACTORS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
+
+
+def fit_gains(cases, corrector, params: DriftParameters, horizons_h=F.HORIZONS_H) -> list[float]:
+    """[H] factors of ``engine.Settings.gain`` for one learned kind: per horizon the one of
+    ``GAIN_FACTORS`` whose forecasts have the highest mean IoU on ``cases`` (validation cases). The
+    residual moves the corrected prior's footprint rigidly, so each candidate is the prior's
+    footprint translated by its share of the residual drift."""
+    from .evaluate import iou, valid
+
+    plain = E.Settings(params)
+    scores = np.zeros((len(GAIN_FACTORS), len(horizons_h)))
+    for case, correction in zip(cases, corrector.corrections([c.obs for c in cases], params)):
+        prior = [valid(f.geometry) for f in E.forecast_plane("physics-corrected", case.obs, horizons_h, plain, contours=False)]
+        truth = [valid(t) for t in case.truth]
+        residual = correction.at(tuple(horizons_h)).drift_m
+        weight = E.constant_velocity_weight(case.obs, params)
+        for i, factor in enumerate(GAIN_FACTORS):
+            share = np.clip(factor * (1.0 - weight), 0.0, 1.0)
+            scores[i] += [iou(affinity.translate(g, *(share * r)), t) for g, r, t in zip(prior, residual, truth)]
+    return [GAIN_FACTORS[i] for i in scores.argmax(axis=0)]
 
 
 def groupwise_factors(ratios: np.ndarray, labels: np.ndarray, level: float = 0.95) -> list[float]:
@@ -394,17 +423,21 @@ def merge_training_record(out_dir: Path, record: dict) -> None:
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
 
 
-def _calibration_job(job) -> tuple[list, int]:
-    """(spread factors per horizon, cases) of one kind on the validation cases with forcing ahead or held,
-    calibrated per forcing family (``forcing_family``): the validation split mixes steady and varying
-    forcing, and a factor pooled over both under-covers the harder varying cases."""
+def _calibration_job(job) -> tuple[list, list | None, int]:
+    """(spread factors per horizon, gain factors per horizon or None, cases) of one kind on the
+    validation cases with forcing ahead or held. A learned kind's gains are fitted first
+    (``fit_gains``), then its spread calibrated with them, per forcing family (``forcing_family``):
+    the validation split mixes steady and varying forcing, and a factor pooled over both under-covers
+    the harder varying cases."""
     from .models import Corrector
 
     out_dir, kind, held, scenarios, params = job
     torch.set_num_threads(1)
     correctors = {kind: Corrector.load(out_dir / f"{kind}.pt")} if kind in KINDS else {}
     cases, groups = validation_cases(held, scenarios)
-    return calibrate(cases, [kind], E.Settings(params), correctors, groups=groups)[kind], len(cases)
+    gains = fit_gains(cases, correctors[kind], params) if correctors else None
+    settings = E.Settings(params, residual_gain={} if gains is None else {E.Settings.scale_key(kind, not held): gains})
+    return calibrate(cases, [kind], settings, correctors, groups=groups)[kind], gains, len(cases)
 
 
 _VALIDATION_CASES: dict = {}
@@ -445,15 +478,17 @@ def write_calibration(out_dir: Path, split, params: DriftParameters, record: dic
     learned = [k for k in KINDS if (Path(out_dir) / f"{k}.pt").is_file()]
     jobs = [(Path(out_dir), kind, held, split.val, params) for held in (False, True)
             for kind in [*learned, *E.BASELINE_KINDS]]
-    factors = {}
-    for (_, kind, held, *_), (value, cases) in tqdm(zip(jobs, mapped(_calibration_job, jobs, workers)),
-                                                   total=len(jobs), desc="calibration", disable=not progress):
+    factors, gains = {}, {}
+    for (_, kind, held, *_), (value, gain, cases) in tqdm(zip(jobs, mapped(_calibration_job, jobs, workers)),
+                                                         total=len(jobs), desc="calibration", disable=not progress):
         factors[E.Settings.scale_key(kind, forcing_ahead=not held)] = value
+        if gain is not None:
+            gains[E.Settings.scale_key(kind, forcing_ahead=not held)] = gain
     ids = split.ids()
     ids["test"] = ids["test"] + [s.scenario_id for s in load_dataset()]
     # re-read just before writing: another `train --model` run may share the directory
     record = {**read_calibration(out_dir).get("training", {}), **record}
-    blob = {"drift": params.to_dict(), "spread_scale": factors,
+    blob = {"drift": params.to_dict(), "spread_scale": factors, "residual_gain": gains,
             "calibration_cases": cases,
             "members": E.Settings(params).members, "split": ids, "training": record}
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")

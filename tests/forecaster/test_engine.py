@@ -88,7 +88,7 @@ def test_forecast_moves_with_a_translated_and_rotated_input(shift_x, shift_y, an
     original, transformed, move = case(shift_x, shift_y, angle)
     corrector = random_corrector()
     params = E.DriftParameters()
-    x0, x1 = (corrector.inputs(o, params)[0] for o in (original, transformed))
+    x0, x1 = (E.window_inputs(o, params)[0] for o in (original, transformed))
     assert np.allclose(x0, x1, atol=1e-6)                       # nothing in the features says where
     assert np.abs(x0[:, F.FEATURE_INDEX["error_u"]]).max() > 1e-3   # the forcing-error estimate is among them
     for kind in ("physics", "physics-corrected", "constant-velocity-growth", "ltc-fused"):
@@ -244,3 +244,60 @@ def test_learned_growth_never_outruns_a_shrinking_slick():
         for f in E.forecast_plane("ltc-fused", obs, F.HORIZONS_H, E.Settings(), correction, contours=False):
             assert f.geometry.area <= E.trend_area(obs, 3600.0 * f.horizon_h) * (1 + 1e-6)
             assert f.geometry.area < latest
+
+
+def test_learned_residual_is_added_by_its_fitted_gain():
+    """Known answer: a residual of 3 km east at every horizon moves the corrected prior's forecast by the
+    whole residual with no gain fitted, and by clip(factor x (1 - constant_velocity_weight), 0, 1) of
+    it with one; a factor of 0 gives the corrected prior itself."""
+    params = E.DriftParameters()
+    hours = np.arange(0.0, 10.0)
+    geoms = [Point(300.0 * 3.6 * h, 0.0).buffer(1_500.0, quad_segs=16) for h in hours]
+    forcing = np.array([[5.0, 2.0 * (-1) ** k, 0.05, 0.02] for k in range(len(hours))])
+    obs = planar_observations(geoms, hours, forcing)
+    weight = E.constant_velocity_weight(obs, params)
+    assert 0.0 < weight < 1.0
+    residual = E.Correction(np.tile([3_000.0, 0.0], (4, 1)), np.zeros(4), np.full((4, 2), 50.0))
+    prior = E.forecast_plane("physics-corrected", obs, (7.0,), E.Settings(), contours=False)[0]
+    for gains, share in ((None, 1.0), ([1.5] * 4, min(1.5 * (1 - weight), 1.0)), ([0.0] * 4, 0.0)):
+        settings = E.Settings(residual_gain={} if gains is None else {"ltc-fused held": gains})
+        learned = E.forecast_plane("ltc-fused", obs, (7.0,), settings, residual, contours=False)[0]
+        assert np.allclose(learned.centroid - prior.centroid, [3_000.0 * share, 0.0], atol=60.0)
+        assert learned.geometry.area == pytest.approx(prior.geometry.area, rel=0.02)
+
+
+def test_an_unknown_kind_is_refused():
+    obs = drifting_history(np.zeros(2), [5.0, 0.0, 0.0, 0.0], np.arange(4.0))
+    with pytest.raises(ValueError, match="unknown forecaster kind 'cv'"):
+        E.forecast_plane("cv", obs, (3.0,), E.Settings())
+
+
+class FixedResidual:
+    """A corrector whose residual drift is the same for every case (the ``models.Corrector`` interface)."""
+
+    def __init__(self, drift_m):
+        self.drift_m = np.asarray(drift_m, float)
+
+    def corrections(self, observations, params):
+        return [E.Correction(np.tile(self.drift_m, (4, 1)), np.zeros(4), np.full((4, 2), 100.0)) for _ in observations]
+
+
+def test_fitted_gain_keeps_a_residual_that_helps_and_drops_one_that_hurts():
+    """Known answer: slicks drift with the forcing, but the truth lies 2 km north of where the corrected
+    prior puts it. A residual of 2 km north is kept whole at every horizon; one of 2 km
+    south gets 0 (the prior alone)."""
+    from oilspill_moos.forecaster.physics import DriftParameters
+    from oilspill_moos.forecaster.train import fit_gains
+    from oilspill_moos.forecaster.windows import Case
+
+    params = DriftParameters()
+    cases = []
+    for k, row in enumerate(([6.0, 1.0, 0.1, 0.0], [3.0, -4.0, 0.0, 0.1], [-5.0, 2.0, -0.1, 0.05])):
+        obs = drifting_history(np.zeros(2), row, np.arange(6.0))
+        prior = E.forecast_plane("physics-corrected", obs, (3, 7, 11, 15), E.Settings(params), contours=False)
+        truth = [affinity.translate(f.geometry, 0.0, 2_000.0) for f in prior]
+        cases.append(Case(f"s{k}", 0.0, obs, truth, [F.Shape.of(g) for g in truth]))
+    weights = [E.constant_velocity_weight(c.obs, params) for c in cases]
+    helping = fit_gains(cases, FixedResidual([0.0, 2_000.0]), params)
+    assert all(min(g * (1 - w), 1.0) == 1.0 for g in helping for w in weights)       # the whole residual
+    assert fit_gains(cases, FixedResidual([0.0, -2_000.0]), params) == [0.0] * 4

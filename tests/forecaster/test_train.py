@@ -96,3 +96,4 @@ def test_examples_and_fits_over_worker_processes_equal_the_serial_ones(tmp_path)
     one, two = list(mapped(_train_job, jobs, 2))
     alone = _train_job(jobs[0])
     assert one["val_at_best"] == two["val_at_best"] == alone["val_at_best"]
+
