@@ -1,7 +1,7 @@
 """CPU a vehicle community costs per simulated second, and the largest fleet that keeps its AppTicks.
 
-    python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warps 10,20] [--window 10] [--one] [--per-process K]
-    python benchmarks/vehicle_bench.py --oilspill 8 --warps 30,40 [--demo-ticks]   # the demo's vessels and shoreside
+    python benchmarks/vehicle_bench.py [--fleets 1,10,30] [--warp 10] [--warps 10,20] [--window 10] [--one] [--per-process K]
+    python benchmarks/vehicle_bench.py --oilspill 8 --warps 30,40 [--demo-ticks] [--per-process K]   # the demo's vessels and shoreside
 
 Each vessel is a copy of missions/s1_alpha (MOOSDB, pLogger, uSimMarineV22, pMarinePIDV22,
 pHelmIvP, pNodeReporter) with its own port and community, run by `pAntler --one-process
