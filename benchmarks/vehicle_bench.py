@@ -90,8 +90,14 @@ def tick_counts(watchers: list[MOOSClient], names: list[str] | None = None) -> d
 
 
 def behind(before: dict[str, tuple[int, int]], after: dict[str, tuple[int, int]]) -> list[str]:
-    """Apps that missed more than BEHIND_SHARE of the AppTicks due between two statuses."""
-    return [f"{app} ({missed} of {due})" for app, missed, due in fell_behind(before, after)]
+    """Apps that missed more than BEHIND_SHARE of the AppTicks due between two statuses, and first the share
+    of all the apps' AppTicks missed (how far a loaded run is from keeping up, when many apps fell behind)."""
+    late = [f"{app} ({missed} of {due})" for app, missed, due in fell_behind(before, after)]
+    if late:
+        missed = sum(m - before.get(app, (0, 0))[1] for app, (_, m) in after.items())
+        due = missed + sum(i - before.get(app, (0, 0))[0] for app, (i, _) in after.items())
+        late.insert(0, f"{100 * missed / max(due, 1):.1f} % of all AppTicks missed")
+    return late
 
 
 async def run_fleet(vessels: int, warp: float, window: float, modes: tuple[str, ...],
