@@ -390,7 +390,6 @@ class Settings:
             return np.ones(len(horizons_h))
         return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
 
-
     def gain(self, kind: str, horizons_h, forcing_ahead: bool, weight: float) -> np.ndarray:
         """[H] share of a learned residual drift kept: clip(factor x (1 - ``weight``), 0, 1), ``weight`` the
         history's ``constant_velocity_weight`` and the factor fitted per horizon on the validation
@@ -429,6 +428,8 @@ def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
     of the prior by ``settings.gain``; physics-corrected takes the history's correction alone."""
     if kind not in BASELINE_KINDS + LEARNED_KINDS:
         raise ValueError(f"unknown forecaster kind {kind!r}: one of {BASELINE_KINDS + LEARNED_KINDS}")
+    if correction is not None and kind not in LEARNED_KINDS:
+        raise ValueError(f"{kind} takes no learned correction (only {LEARNED_KINDS} do)")
     if kind == "physics-corrected" or correction is not None:
         weight = constant_velocity_weight(obs, settings.params)
         base = history_correction(obs, settings.params, horizons_h, weight)

@@ -266,10 +266,14 @@ def test_learned_residual_is_added_by_its_fitted_gain():
         assert learned.geometry.area == pytest.approx(prior.geometry.area, rel=0.02)
 
 
-def test_an_unknown_kind_is_refused():
+def test_an_unknown_kind_and_a_correction_for_a_baseline_are_refused():
+    """A misspelt kind once ran the physics prior silently."""
     obs = drifting_history(np.zeros(2), [5.0, 0.0, 0.0, 0.0], np.arange(4.0))
     with pytest.raises(ValueError, match="unknown forecaster kind 'cv'"):
         E.forecast_plane("cv", obs, (3.0,), E.Settings())
+    residual = E.Correction(np.zeros((4, 2)), np.zeros(4), np.full((4, 2), 50.0))
+    with pytest.raises(ValueError, match="physics takes no learned correction"):
+        E.forecast_plane("physics", obs, (3.0,), E.Settings(), residual)
 
 
 class FixedResidual:
