@@ -103,7 +103,13 @@ class ThrustMap:
         if thrust >= thrusts[-1]:
             return speeds[-1]
         j = bisect_right(thrusts, thrust) - 1      # np.interp's segment and arithmetic, to the bit
-        return (speeds[j + 1] - speeds[j]) / (thrusts[j + 1] - thrusts[j]) * (thrust - thrusts[j]) + speeds[j]
+        if thrust == thrusts[j]:                   # as np.interp: a knot's own speed, never inf x 0
+            return speeds[j]
+        slope = (speeds[j + 1] - speeds[j]) / (thrusts[j + 1] - thrusts[j])
+        speed = slope * (thrust - thrusts[j]) + speeds[j]
+        if math.isnan(speed):                      # a subnormal gap: np.interp tries the other end
+            speed = slope * (thrust - thrusts[j + 1]) + speeds[j + 1]
+        return speed
 
 
 @dataclass
