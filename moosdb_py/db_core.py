@@ -544,7 +544,7 @@ class MOOSDBCore:
             var = self._written(msg.key, msg.data_type, msg.source, now)
             if var is None:
                 return
-        var._wire, var._msg = b"", msg
+        var.store(msg=msg)
         var.source = msg.source
         var.written_time = now
         var.window_writes += 1

@@ -386,9 +386,7 @@ class Settings:
         """Calibration factors at any horizons: linear between the calibrated ones, held beyond (the
         factors calibrated with forcing ahead when none were calibrated without)."""
         factors = self.spread_scale.get(self.scale_key(kind, forcing_ahead), self.spread_scale.get(kind))
-        if factors is None:
-            return np.ones(len(horizons_h))
-        return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
+        return np.ones(len(horizons_h)) if factors is None else at_horizons(factors, horizons_h)
 
     def gain(self, kind: str, horizons_h, forcing_ahead: bool, weight: float) -> np.ndarray:
         """[H] share of a learned residual drift kept: clip(factor x (1 - ``weight``), 0, 1), ``weight`` the
@@ -397,8 +395,12 @@ class Settings:
         factors = self.residual_gain.get(self.scale_key(kind, forcing_ahead))
         if factors is None:
             return np.ones(len(horizons_h))
-        factor = np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
-        return np.clip(factor * (1.0 - weight), 0.0, 1.0)
+        return np.clip(at_horizons(factors, horizons_h) * (1.0 - weight), 0.0, 1.0)
+
+
+def at_horizons(factors, horizons_h) -> np.ndarray:
+    """Factors fitted at ``features.HORIZONS_H``, at any horizons: linear between them, held beyond."""
+    return np.interp(np.asarray(horizons_h, float), np.asarray(F.HORIZONS_H, float), np.asarray(factors, float))
 
 
 def canonical(obs: Observations, params: DriftParameters) -> tuple[Observations, float, np.ndarray]:
