@@ -63,7 +63,9 @@ class Scenario:
         """(indices, geometries) of what a satellite would have given: each hour missing with a
         probability drawn per scenario from 0-40 % (so intervals are irregular; first and last hours
         kept), every boundary vertex jittered by a per-scenario 0-3 % of the footprint's size, then
-        repaired. Deterministic in (scenario seed, ``seed``); ``noise=False`` gives the clean truth."""
+        repaired (``make_valid``'s "structure" method: the area the rings enclose, in a third of the
+        "linework" method's time on these self-crossing rings). Deterministic in (scenario seed,
+        ``seed``); ``noise=False`` gives the clean truth."""
         if not noise:
             return np.arange(len(self)), list(self.geometries)
         rng = np.random.default_rng([self.seed, seed])
@@ -76,7 +78,8 @@ class Scenario:
         for i in index:
             plane = shapely.transform(self.geometries[i], lambda xy: np.column_stack(to_local(xy[:, 0], xy[:, 1])))
             size = math.sqrt(plane.area)
-            noisy = shapely.make_valid(MultiPolygon([_jittered(p, rng, jitter * size) for p in shapely.get_parts(plane)]))
+            jittered = MultiPolygon([_jittered(p, rng, jitter * size) for p in shapely.get_parts(plane)])
+            noisy = shapely.make_valid(jittered, method="structure", keep_collapsed=False)
             noisy = MultiPolygon([p for p in shapely.get_parts(noisy) if p.geom_type == "Polygon"]
                                  or list(shapely.get_parts(plane)))
             out.append(shapely.transform(noisy, lambda xy: np.column_stack(to_lonlat(xy[:, 0], xy[:, 1]))))

@@ -16,7 +16,8 @@ grid of ``cell = sqrt(A0) / CELLS_PER_SIDE`` (A0 the observed area), Gaussian-sm
 and the highest-density region holding the mass fraction q of that density. q is set per forecast so
 that the method reproduces the observed area from the undisturbed particles (t = 0); the same q is then
 used at every horizon, so the footprint grows as diffusion spreads the particles and every part of a
-multi-part slick is carried as its own part.
+multi-part slick is carried as its own part. (The kinds corrected from the observed history move the
+particles without the walk and take the observed area trend instead: ``engine``.)
 
 Uniform forcing moves every particle alike, so an ensemble member whose forcing differs is the central
 footprint shifted by its difference in displacement: the probability of oil per cell is the central
@@ -227,13 +228,16 @@ class ParticleFootprint:
 
 
 def drift(observed: BaseGeometry, start_s: float, horizons_s, track: ForcingTrack,
-          params: DriftParameters = DriftParameters()) -> tuple[list[np.ndarray], np.ndarray]:
+          params: DriftParameters = DriftParameters(), diffuse: bool = True) -> tuple[list[np.ndarray], np.ndarray]:
     """(particles [N, 2] at ``start_s`` + each horizon (seconds), particles at the start) of ``observed``
-    (planar metres): advected by the drift velocity and spread by diffusion."""
+    (planar metres): advected by the drift velocity and, with ``diffuse``, spread by diffusion (the
+    corrected kinds take their spreading from the observed area trend instead, see engine)."""
     rng = np.random.default_rng(params.seed)
     start = sample_particles(observed, params.particles, rng)
     horizons = np.asarray(horizons_s, float)
     moved = displacement(track, start_s, start_s + horizons, params.windage, params.deflection_deg)
+    if not diffuse:
+        return [start + moved[j] for j in range(len(horizons))], start
     gaps = np.diff(np.concatenate([[0.0], horizons]))
     steps = rng.standard_normal((len(horizons), params.particles, 2)) * np.sqrt(2 * params.diffusivity * gaps)[:, None, None]
     walk = np.cumsum(steps, axis=0)

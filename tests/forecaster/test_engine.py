@@ -129,14 +129,15 @@ def test_forcing_error_recovers_a_known_drift_error():
                        0.0, atol=1e-5)
     assert np.allclose(E.forcing_error(drifting_history(offset, [7.0, -2.0, 0.2, 0.1], [0.0]), E.DriftParameters()), 0.0)
     # and the corrected prior carries it on over any horizon; this straight track under constant forcing
-    # is explained equally well by constant velocity, so it is blended half and half with that
+    # is explained equally well by constant velocity, so it is blended half and half with that (within
+    # 100 m: the physics kind's particles take a random walk, the corrected kind's do not)
     weight = E.constant_velocity_weight(obs, E.DriftParameters())
     assert weight == pytest.approx(0.5)
     for horizon in (2.5, 9.0, 20.0):
         physics, corrected = (E.forecast_plane(k, obs, (horizon,), E.Settings(), contours=False)[0]
                               for k in ("physics", "physics-corrected"))
         assert np.allclose(corrected.centroid - physics.centroid, 3600.0 * horizon * ((1 - weight) * error + weight * offset),
-                           atol=0.02 * 2_000.0)
+                           atol=100.0)
 
 
 def test_adaptive_forcing_error_trusts_a_consistent_miss_and_doubts_an_erratic_one():
