@@ -344,7 +344,10 @@ class AppTicker:
     its controller), each kind's in the order they are due. While the pass lasts, an app whose next
     tick falls due (without slack) runs at once, before the rest, even one that already ran (many
     vessels' helms take longer than a PID's period: the PIDs run between them instead of missing
-    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop.
+    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop. An app
+    already a whole period late when a wake-up starts (one that a saturated pass left behind) also runs
+    before the kinds, the earliest due first: otherwise the kind launched last waits behind the others'
+    ticks in every pass while the process is saturated, and misses most of its own.
 
     Waiting apps are kept in cohorts, one per (due, slack) pair: the apps of a kind tick in step, so
     fifteen vessels' 75 apps make about six cohorts, and a wake-up looks at those and at the apps it
@@ -419,10 +422,11 @@ class AppTicker:
         try:
             now = max(_time.monotonic(), self._wake)
             for key in [key for key in cohorts if key[0] - key[1] <= now]:
+                overdue = key[0] + key[1] / TICK_SLACK <= now     # a period late: a saturated pass left it behind
                 for app in cohorts.pop(key):
                     del cohort_of[app]
                     kind, order = apps[app]
-                    due.append((kind, key[0], order, app))
+                    due.append((-1 if overdue else kind, key[0], order, app))
             heapq.heapify(due)
             budget = self.PASS_TICKS * len(apps)
             while due and budget:

@@ -258,6 +258,40 @@ def test_a_fast_app_runs_between_slow_ones_due_in_the_same_wake_up():
     asyncio.run(scenario())
 
 
+def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_process():
+    """Four apps of one kind (AppTick 50, 6 ms iterations: 1.2 times the processor) launched before one
+    app of another kind (AppTick 5): the passes run out of ticks before they reach the later kind, so
+    the next wake-up runs that app first once it is a period late, and it misses few of its ticks,
+    where otherwise it would wait behind the busy kind's ticks in every pass and miss most."""
+    class Busy(Counter):
+        def iterate(self):
+            time.sleep(0.006)
+            super().iterate()
+
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=1)
+        await db.start()
+        busy = [Busy(name=f"counter_busy{i}", port=db.port, time_warp=1) for i in range(4)]
+        last = Counter(name="counter_last", port=db.port, time_warp=1)
+        tasks = []
+        for app in (*busy, last):
+            app.client.local_db = db
+            app.app_tick = 5 if app is last else 50
+            tasks.append(asyncio.create_task(app.run_async()))
+            await async_wait_until(lambda: app.iterations >= 1)
+        await asyncio.sleep(0.5)
+        ran, missed = last.iterations, last.ticks_missed
+        await asyncio.sleep(2.0)
+        ran, missed = last.iterations - ran, last.ticks_missed - missed
+        for app in (*busy, last):
+            app.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        return ran, missed
+    ran, missed = asyncio.run(scenario())
+    assert missed <= 2 and ran >= 7, f"the last kind ran {ran} ticks and missed {missed} of ~10 in 2 s"
+
+
 def test_a_wake_up_runs_the_apps_of_one_kind_together_in_launch_order():
     """Two vessels' apps hosted together (kinds A and B, launched A1 B1 A2 B2) with ticks due together: a wake-up
     runs A1 A2 B1 B2 (one app's code for every vessel while it is in the processor's caches), the kinds in the
