@@ -350,7 +350,7 @@ class AppTicker:
     ticks in every pass while the process is saturated, and misses most of its own.
 
     Waiting apps are kept in cohorts, one per (due, slack) pair: the apps of a kind tick in step, so
-    fifteen vessels' 75 apps make about six cohorts, and a wake-up looks at those and at the apps it
+    fifteen vessels' 75 apps make about nine cohorts, and a wake-up looks at those and at the apps it
     runs, never at every app (a scan of every app was 7 % of such a process)."""
 
     PASS_TICKS = 2
