@@ -435,7 +435,7 @@ class AppTicker:
                     heapq.heappop(due)
                     continue
                 app._tick(now)
-                heapq.heappop(due)     # after the tick: an app whose tick raised is still waited for below
+                heapq.heappop(due)     # after the tick: should the tick raise past `_tick`, the app is waited for below
                 budget -= 1
                 if app._ticking.done():    # failed
                     del apps[app]
@@ -448,7 +448,7 @@ class AppTicker:
                             del cohort_of[waiting]
                             heapq.heappush(due, (-1, key[0], apps[waiting][1], waiting))
         finally:
-            for entry in due:     # not run: the budget ran out
+            for entry in due:     # not run: the budget ran out (or a tick raised)
                 if entry[-1] in apps:
                     self._wait(entry[-1])
             self._running = False

@@ -147,7 +147,7 @@ class MOOSDB:
         self._serving = False
         self._kicked: dict[LocalLink, None] = {}   # in-process clients with a batch to take
         self._flush_due = False
-        self._loop: asyncio.AbstractEventLoop | None = None   # the serving loop (asking for it each wake-up is a getpid call)
+        self._loop: asyncio.AbstractEventLoop | None = None   # the serving loop (asking each wake-up: a getpid call)
 
     @property
     def clients(self) -> dict[str, DBClient]:
