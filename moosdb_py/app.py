@@ -346,8 +346,10 @@ class AppTicker:
     vessels' helms take longer than a PID's period: the PIDs run between them instead of missing
     ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop. An app
     already a whole period late when a wake-up starts (one that a saturated pass left behind) also runs
-    before the kinds, the earliest due first: otherwise the kind launched last waits behind the others'
-    ticks in every pass while the process is saturated, and misses most of its own.
+    before the kinds: otherwise the kind launched last waits behind the others' ticks in every pass
+    while the process is saturated, and misses most of its own. The apps run before the kinds go by
+    deadline, two periods after the tick (when a tick not yet run counts as missed): a PID a little
+    late before a helm due earlier but with longer to go.
 
     Waiting apps are kept in cohorts, one per (due, slack) pair: the apps of a kind tick in step, so
     fifteen vessels' 75 apps make about nine cohorts, and a wake-up looks at those and at the apps it
@@ -422,11 +424,12 @@ class AppTicker:
         try:
             now = max(_time.monotonic(), self._wake)
             for key in [key for key in cohorts if key[0] - key[1] <= now]:
-                overdue = key[0] + key[1] / TICK_SLACK <= now     # a period late: a saturated pass left it behind
+                period = key[1] / TICK_SLACK
+                overdue = key[0] + period <= now     # a period late: a saturated pass left it behind
                 for app in cohorts.pop(key):
                     del cohort_of[app]
                     kind, order = apps[app]
-                    due.append((-1 if overdue else kind, key[0], order, app))
+                    due.append((-1, key[0] + 2 * period, order, app) if overdue else (kind, key[0], order, app))
             heapq.heapify(due)
             budget = self.PASS_TICKS * len(apps)
             while due and budget:
@@ -446,7 +449,7 @@ class AppTicker:
                     for key in [key for key in cohorts if key[0] <= now]:
                         for waiting in cohorts.pop(key):
                             del cohort_of[waiting]
-                            heapq.heappush(due, (-1, key[0], apps[waiting][1], waiting))
+                            heapq.heappush(due, (-1, key[0] + 2 * key[1] / TICK_SLACK, apps[waiting][1], waiting))
         finally:
             for entry in due:     # not run: the budget ran out (or a tick raised)
                 if entry[-1] in apps:
