@@ -25,6 +25,8 @@ from .message import BINARY, DOUBLE, MOOSMsg
 RULE = "%" * 59
 DATATYPE_MARKING = "%% DATATYPE MARKING ON"
 COLUMNS_KEPT = 4096    # AlogWriter's VAR/source columns kept (one per writer of a variable)
+WRITE_BUFFER = 1 << 16   # bytes buffered per file: pLogger flushes every FLUSH_PERIOD (0.25 s), so a vessel's ~30 KB a
+                         # wall second at warp 20 go in a write or two per flush, not a system call per 8 KB
 
 
 class AlogFormatError(ValueError):
@@ -217,7 +219,7 @@ class AlogWriter:
         self._blog_path = self.path.with_suffix(".blog")
         self._blog: BinaryIO | None = None
         self._columns: dict[tuple[str, str, str, str], str] = {}
-        self._stream = open(self.path, "w", encoding="latin-1", newline="\n")
+        self._stream = open(self.path, "w", encoding="latin-1", newline="\n", buffering=WRITE_BUFFER)
         self._stream.write(alog_header(shown_path or str(self.path), log_start, mark_data_type))
 
     def value_text(self, msg: MOOSMsg) -> str:

@@ -344,7 +344,16 @@ class AppTicker:
     its controller), each kind's in the order they are due. While the pass lasts, an app whose next
     tick falls due (without slack) runs at once, before the rest, even one that already ran (many
     vessels' helms take longer than a PID's period: the PIDs run between them instead of missing
-    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop."""
+    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop. An app
+    already a whole period late when a wake-up starts (one that a saturated pass left behind) also runs
+    before the kinds: otherwise the kind launched last waits behind the others' ticks in every pass
+    while the process is saturated, and misses most of its own. The apps run before the kinds go by
+    deadline, two periods after the tick (when a tick not yet run counts as missed): a PID a little
+    late before a helm due earlier but with longer to go.
+
+    Waiting apps are kept in cohorts, one per (due, slack) pair: the apps of a kind tick in step, so
+    fifteen vessels' 75 apps make about nine cohorts, and a wake-up looks at those and at the apps it
+    runs, never at every app (a scan of every app was 7 % of such a process)."""
 
     PASS_TICKS = 2
 
@@ -352,7 +361,11 @@ class AppTicker:
 
     def __init__(self, loop: asyncio.AbstractEventLoop):
         self.loop = loop
-        self.apps: dict[MOOSApp, None] = {}   # a dict: membership is asked for every tick of a pass
+        self.apps: dict[MOOSApp, tuple[int, int]] = {}   # app -> (its kind's rank, its own): the order of a pass
+        self._kinds: dict[type, int] = {}
+        self._added = 0
+        self._cohorts: dict[tuple[float, float], dict[MOOSApp, None]] = {}   # (due, slack) -> the apps waiting
+        self._cohort_of: dict[MOOSApp, tuple[float, float]] = {}             # a waiting app's cohort
         self._timer: asyncio.TimerHandle | None = None
         self._wake = 0.0            # when the timer is due (the loop may call it a little early)
         self._running = False
@@ -365,12 +378,32 @@ class AppTicker:
         return ticker
 
     def add(self, app: MOOSApp) -> None:
-        self.apps[app] = None
+        self._added += 1
+        self.apps[app] = (self._kinds.setdefault(type(app), len(self._kinds)), self._added)
+        self._wait(app)
         self._schedule()
 
     def remove(self, app: MOOSApp) -> None:
-        if self.apps.pop(app, 0) is None:
+        if self.apps.pop(app, None) is not None:
+            self._unwait(app)
             self._schedule()
+
+    def _wait(self, app: MOOSApp) -> None:
+        """Into the cohort of its next tick."""
+        key = self._cohort_of[app] = (app._next_tick, app._tick_slack)
+        cohort = self._cohorts.get(key)
+        if cohort is None:
+            self._cohorts[key] = {app: None}
+        else:
+            cohort[app] = None
+
+    def _unwait(self, app: MOOSApp) -> None:
+        key = self._cohort_of.pop(app, None)
+        if key is not None:
+            cohort = self._cohorts[key]
+            del cohort[app]
+            if not cohort:
+                del self._cohorts[key]
 
     def _schedule(self) -> None:
         """The timer for the next wake-up."""
@@ -379,43 +412,48 @@ class AppTicker:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
-        if self.apps:
-            # apps of a kind tick in step: their (due, slack) pairs once each (15 vessels: 90 apps, ~6 pairs)
-            self._wake = next_wake(list({(a._next_tick, a._tick_slack): None for a in self.apps}))
+        if self._cohorts:
+            self._wake = next_wake(list(self._cohorts))
             self._timer = self.loop.call_at(self._wake, self._run)    # asyncio's clock is time.monotonic
 
     def _run(self) -> None:
         self._timer = None
         self._running = True
+        apps, cohorts, cohort_of = self.apps, self._cohorts, self._cohort_of
+        due = []      # heap: to run in this pass
         try:
             now = max(_time.monotonic(), self._wake)
-            apps = self.apps
-            kinds: dict[type, int] = {}
-            due, waiting = [], []      # heaps: to run in this pass / not yet due
-            for order, app in enumerate(apps):
-                if app._next_tick - app._tick_slack <= now:
-                    due.append((kinds.setdefault(type(app), len(kinds)), app._next_tick, order, app))
-                else:
-                    waiting.append((app._next_tick, order, app))
+            for key in [key for key in cohorts if key[0] - key[1] <= now]:
+                period = key[1] / TICK_SLACK
+                overdue = key[0] + period <= now     # a period late: a saturated pass left it behind
+                for app in cohorts.pop(key):
+                    del cohort_of[app]
+                    kind, order = apps[app]
+                    due.append((-1, key[0] + 2 * period, order, app) if overdue else (kind, key[0], order, app))
             heapq.heapify(due)
-            heapq.heapify(waiting)
             budget = self.PASS_TICKS * len(apps)
-            order = len(apps)
             while due and budget:
-                app = heapq.heappop(due)[-1]
+                app = due[0][-1]
                 if app not in apps:    # stopped by an app ticked before it
+                    heapq.heappop(due)
                     continue
                 app._tick(now)
+                heapq.heappop(due)     # after the tick: should the tick raise past `_tick`, the app is waited for below
                 budget -= 1
                 if app._ticking.done():    # failed
                     del apps[app]
                     continue
-                order += 1
-                heapq.heappush(waiting, (app._next_tick, order, app))
+                self._wait(app)
                 now = _time.monotonic()
-                while waiting and waiting[0][0] <= now:    # fell due while the pass ran: before the rest
-                    heapq.heappush(due, (-1, *heapq.heappop(waiting)))
+                if min(cohorts)[0] <= now:    # fell due while the pass ran: before the rest
+                    for key in [key for key in cohorts if key[0] <= now]:
+                        for waiting in cohorts.pop(key):
+                            del cohort_of[waiting]
+                            heapq.heappush(due, (-1, key[0] + 2 * key[1] / TICK_SLACK, apps[waiting][1], waiting))
         finally:
+            for entry in due:     # not run: the budget ran out (or a tick raised)
+                if entry[-1] in apps:
+                    self._wait(entry[-1])
             self._running = False
             self._schedule()
 

@@ -147,6 +147,7 @@ class MOOSDB:
         self._serving = False
         self._kicked: dict[LocalLink, None] = {}   # in-process clients with a batch to take
         self._flush_due = False
+        self._loop: asyncio.AbstractEventLoop | None = None   # the serving loop (asking each wake-up: a getpid call)
 
     @property
     def clients(self) -> dict[str, DBClient]:
@@ -164,7 +165,7 @@ class MOOSDB:
         return moos_time(self.time_warp)
 
     async def start(self) -> None:
-        loop = asyncio.get_running_loop()
+        loop = self._loop = asyncio.get_running_loop()
         self._server = await loop.create_server(lambda: ClientConnection(self), self.host, self.port,
                                                 backlog=4096, reuse_address=True)
         self.port = self._server.sockets[0].getsockname()[1]
@@ -193,7 +194,7 @@ class MOOSDB:
         self._kicked[link] = None
         if not self._flush_due:
             self._flush_due = True
-            asyncio.get_running_loop().call_soon(self._flush_local)
+            self._loop.call_soon(self._flush_local)
 
     def _flush_local(self) -> None:
         self._flush_due = False

@@ -328,7 +328,11 @@ PUBLICATIONS:
         if self.params.simulation:
             return []
         times = self.times
-        return [(label, now - times[key]) for key, label, limit in self._staleness_checks if now - times[key] > limit]
+        for key, _, limit in self._staleness_checks:   # nearly always fresh: no list made for that
+            if now - times[key] > limit:
+                return [(label, now - times[key]) for key, label, limit in self._staleness_checks
+                        if now - times[key] > limit]
+        return []
 
     def iterate(self) -> None:
         if self.overridden:

@@ -89,7 +89,10 @@ class ReporterParams:
 
 def summary_modes(summary: str) -> str | None:
     """The `modes=` field of an IVPHELM_SUMMARY, if it has one; fields split as every MOOS string is
-    (split_quoted). The summary's other fields are not all key=value, so no parse_pairs."""
+    (split_quoted). The summary's other fields are not all key=value, so no parse_pairs. The helm names its
+    modes only when they change: a summary without the word is not split at all."""
+    if "modes" not in summary.lower():
+        return None
     try:
         fields = split_quoted(summary)
     except FormatError:

@@ -365,6 +365,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
         self.reset_count = 0
         self._drift_summary_posted: str | None = None
         self._drift_posted: tuple[float, float] | None = None
+        self._latlon: tuple[float, float, float, float] | None = None   # (x, y, lat, lon) last converted
 
     def on_connect(self) -> None:
         for key in SIM_INPUTS:
@@ -430,7 +431,7 @@ PUBLICATIONS (every second iteration, with prefix NAV):
         notify(prefix + "_X", s.x, now)
         notify(prefix + "_Y", s.y, now)
         if self.grid is not None:
-            lat, lon = self.grid.to_latlon(s.x, s.y)
+            lat, lon = self._lat_lon(s.x, s.y)
             notify(prefix + "_LAT", lat, now)
             notify(prefix + "_LONG", lon, now)
         notify(prefix + "_HEADING", s.heading, now)
@@ -448,6 +449,14 @@ PUBLICATIONS (every second iteration, with prefix NAV):
             if summary != self._drift_summary_posted:
                 notify("USM_DRIFT_SUMMARY", summary, now)
                 self._drift_summary_posted = summary
+
+    def _lat_lon(self, x: float, y: float) -> tuple[float, float]:
+        """The grid's lat/lon of (x, y), converted again only when the position moved (a vessel at rest, as
+        most of a fleet is between tasks, posts the same position; a conversion is most of a NAV_* post)."""
+        last = self._latlon
+        if last is None or last[0] != x or last[1] != y:
+            last = self._latlon = (x, y, *self.grid.to_latlon(x, y))
+        return last[2], last[3]
 
     def status_fields(self) -> dict:
         s = self.model.state

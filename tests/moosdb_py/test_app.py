@@ -51,6 +51,18 @@ class Counter(MOOSApp):
         return {"count": f"{self.count:g}"}
 
 
+class Busy(Counter):
+    """A Counter whose iterations take `seconds` of the processor's time (sleeping, to be sure of it)."""
+
+    def __init__(self, *args, seconds: float, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.seconds = seconds
+
+    def iterate(self):
+        time.sleep(self.seconds)
+        super().iterate()
+
+
 def _mission(tmp_path, port, body="AppTick = 10\n  step = 2", warp=10):
     path = tmp_path / "counter.moos"
     path.write_text(f"ServerHost = localhost\nServerPort = {port}\nMOOSTimeWarp = {warp}\n\n"
@@ -162,13 +174,9 @@ def test_an_app_whose_comms_die_fails_instead_of_running_deaf(moosdb_server):
 def test_every_apptick_period_is_either_iterated_or_counted_missed(moosdb_server, tmp_path):
     """An iteration slower than the AppTick period: each period due is run (a late one at once) or
     counted in TicksMissed, none dropped silently, whatever the machine's load."""
-    class Slow(Counter):
-        def iterate(self):
-            time.sleep(0.07)          # 1.4 periods of AppTick 20
-            super().iterate()
-
     async def scenario():
-        app = Slow(_mission(tmp_path, moosdb_server.port, "AppTick = 20", warp=1), "counter2")
+        app = Busy(_mission(tmp_path, moosdb_server.port, "AppTick = 20", warp=1), "counter2",
+                   seconds=0.07)      # 1.4 periods of AppTick 20
         running = asyncio.create_task(app.run_async())
         await async_wait_until(lambda: app.iterations >= 1)
         start, first, missed = time.monotonic(), app.iterations, app.ticks_missed
@@ -230,17 +238,12 @@ def test_a_fast_app_runs_between_slow_ones_due_in_the_same_wake_up():
     """Eight apps at AppTick 1 whose iterations take 12 ms each all fall due in one wake-up (96 ms): an app at
     AppTick 50 (20 ms) sharing the loop runs between them when its ticks fall due (an earliest-deadline-first
     pass) instead of waiting for the batch to end and missing four periods each time."""
-    class Slow(Counter):
-        def iterate(self):
-            time.sleep(0.012)
-            super().iterate()
-
     async def scenario():
         db = MOOSDB(port=0, time_warp=1)
         await db.start()
         fast = Counter(name="counter_fast", port=db.port, time_warp=1)
         fast.app_tick = 50
-        slow = [Slow(name=f"counter_slow{i}", port=db.port, time_warp=1) for i in range(8)]
+        slow = [Busy(name=f"counter_slow{i}", port=db.port, time_warp=1, seconds=0.012) for i in range(8)]
         for app in (fast, *slow):
             app.client.local_db = db
             app.app_tick = 50 if app is fast else 1
@@ -256,6 +259,35 @@ def test_a_fast_app_runs_between_slow_ones_due_in_the_same_wake_up():
         # waiting for the batch to end misses about four periods a batch; allow a scheduling hiccup or two
         assert missed <= 3, f"the fast app missed {missed} ticks over two slow batches"
     asyncio.run(scenario())
+
+
+def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_process():
+    """Four apps of one kind (AppTick 50, 6 ms iterations: 1.2 times the processor) launched before one
+    app of another kind (AppTick 5): the passes run out of ticks before they reach the later kind, so
+    the next wake-up runs that app first once it is a period late, and it misses few of its ticks,
+    where otherwise it would wait behind the busy kind's ticks in every pass and miss most."""
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=1)
+        await db.start()
+        busy = [Busy(name=f"counter_busy{i}", port=db.port, time_warp=1, seconds=0.006) for i in range(4)]
+        last = Counter(name="counter_last", port=db.port, time_warp=1)
+        tasks = []
+        for app in (*busy, last):
+            app.client.local_db = db
+            app.app_tick = 5 if app is last else 50
+            tasks.append(asyncio.create_task(app.run_async()))
+            await async_wait_until(lambda: app.iterations >= 1)
+        await asyncio.sleep(0.5)
+        ran, missed = last.iterations, last.ticks_missed
+        await asyncio.sleep(2.0)
+        ran, missed = last.iterations - ran, last.ticks_missed - missed
+        for app in (*busy, last):
+            app.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        return ran, missed
+    ran, missed = asyncio.run(scenario())
+    assert missed <= 2 and ran >= 7, f"the last kind ran {ran} ticks and missed {missed} of ~10 in 2 s"
 
 
 def test_a_wake_up_runs_the_apps_of_one_kind_together_in_launch_order():

@@ -3,6 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from moosdb_py.formats import FormatError, split_quoted
 from moosdb_py.geodesy import LocalGrid
 from oilspill_moos.marine.node_reporter import (
     NodeReportBuilder,
@@ -139,6 +140,18 @@ def test_summary_modes_and_plat_input_parse():
     assert summary_modes("iter=1,modes=MODE@ACTIVE:LOITERING,var=speed:1") == "MODE@ACTIVE:LOITERING"
     assert summary_modes("iter=1") is None
     assert PlatReportInput.parse("X, alias=Y") == PlatReportInput("X", 0.0, "Y")
+
+
+@given(st.lists(st.sampled_from(["modes", "MODES", "Modes ", "mode", "=", " = ", ",", '"', "iter=3", "@", "x",
+                                  "{", "}"])).map("".join))
+def test_summary_modes_reads_the_field_whether_or_not_the_word_is_looked_for_first(summary):
+    """The look for the word `modes` before splitting changes no answer: the modes field of the split."""
+    try:
+        fields = [f.partition("=") for f in split_quoted(summary)]
+    except FormatError:
+        fields = []
+    expected = next((value.strip() for key, sep, value in fields if sep and key.lower() == "modes"), None)
+    assert summary_modes(summary) == expected
 
 
 @settings(max_examples=80, deadline=None)
