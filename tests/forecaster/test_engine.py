@@ -9,7 +9,7 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely import affinity
-from shapely.geometry import MultiPolygon, Point
+from shapely.geometry import MultiPolygon, Point, box
 
 from oilspill_moos.forecaster import engine as E
 from oilspill_moos.forecaster import features as F
@@ -306,3 +306,21 @@ def test_fitted_gain_keeps_a_residual_that_helps_and_drops_one_that_hurts():
     helping = fit_gains(cases, FixedResidual([0.0, 2_000.0]), params)
     assert all(min(g * (1 - w), 1.0) == 1.0 for g in helping for w in weights)       # the whole residual
     assert fit_gains(cases, FixedResidual([0.0, -2_000.0]), params) == [0.0] * 4
+
+
+def test_corrected_kinds_keep_the_shape_the_walk_would_round():
+    """A 8 x 2 km slick drifting exactly as a steady current says: physics-corrected moves its particles
+    without the random walk (its spreading is the observed area trend, here none), so at 15 h its
+    footprint is the observed one translated; the physics prior's walk (K = 10 m^2/s, about 1 km of
+    spread by then) rounds it."""
+    slick = box(-4_000, -1_000, 4_000, 1_000)
+    hours = np.arange(6.0)
+    current = [0.0, 0.0, 0.2, 0.1]
+    geoms = [affinity.translate(slick, 720.0 * (h - hours[-1]), 360.0 * (h - hours[-1])) for h in hours]
+    obs = planar_observations(geoms, hours, np.tile(current, (len(hours), 1)), ahead=[current] * 15)
+    corrected, physics = (E.forecast_plane(k, obs, (15,), E.Settings(), contours=False)[0]
+                          for k in ("physics-corrected", "physics"))
+    truth = affinity.translate(slick, 0.2 * 54_000, 0.1 * 54_000)
+    assert iou(corrected.geometry, truth) > 0.9
+    assert F.shape_axes(F.Shape.of(corrected.geometry).cov)[0] == pytest.approx(4.0, rel=0.1)
+    assert F.shape_axes(F.Shape.of(physics.geometry).cov)[0] < 3.2
