@@ -339,17 +339,19 @@ class AppTicker:
     ticks stay on the multiples of its period: its rate is exact, only the phase of an iteration
     moves, by less than a quarter period.
 
-    The apps of one kind (class) run together, kinds in the order they were added (vessels hosted
-    together: every vessel's helm while its code is in the caches; a vessel's simulator still before
-    its controller), each kind's in the order they are due. While the pass lasts, an app whose next
-    tick falls due (without slack) runs at once, before the rest, even one that already ran (many
-    vessels' helms take longer than a PID's period: the PIDs run between them instead of missing
-    ticks), up to PASS_TICKS ticks per app so that a saturated process still returns to its loop. An app
-    already a whole period late when a wake-up starts (one that a saturated pass left behind) also runs
-    before the kinds: otherwise the kind launched last waits behind the others' ticks in every pass
-    while the process is saturated, and misses most of its own. The apps run before the kinds go by
-    deadline, two periods after the tick (when a tick not yet run counts as missed): a PID a little
-    late before a helm due earlier but with longer to go.
+    A pass runs its apps by deadline, earliest first: two periods after the tick, when a tick not yet run
+    counts as missed (MOOSApp._tick), so the fastest kinds (a PID at 10 Hz) run first and a saturated
+    pass leaves the ticks with the longest to go. The apps of one kind tick in step, so they share a
+    deadline and run together, kinds of one deadline in the order they were added (vessels hosted
+    together: every vessel's helm while its code is in the caches; a vessel's simulator before its
+    helm), apps of one kind in the order they were added. A pass posts nothing until it ends (the
+    wake-up's posts are routed together), so the order within it changes no app's mail. While the
+    pass lasts, an app whose next tick falls due (without slack) joins it by its deadline, even one
+    that already ran (many vessels' helms take longer than a PID's period: the PIDs run between them
+    instead of missing ticks), up to PASS_TICKS ticks per app so that a saturated process still
+    returns to its loop. An app a saturated pass left behind keeps its early deadline, so the next
+    wake-up runs it before the apps due since: the kind launched last does not wait behind the
+    others' ticks in every pass.
 
     Waiting apps are kept in cohorts, one per (due, slack) pair: the apps of a kind tick in step, so
     fifteen vessels' 75 apps make about nine cohorts, and a wake-up looks at those and at the apps it
@@ -424,12 +426,10 @@ class AppTicker:
         try:
             now = max(_time.monotonic(), self._wake)
             for key in [key for key in cohorts if key[0] - key[1] <= now]:
-                period = key[1] / TICK_SLACK
-                overdue = key[0] + period <= now     # a period late: a saturated pass left it behind
+                deadline = key[0] + 2 * key[1] / TICK_SLACK    # two periods after the tick: then it counts missed
                 for app in cohorts.pop(key):
                     del cohort_of[app]
-                    kind, order = apps[app]
-                    due.append((-1, key[0] + 2 * period, order, app) if overdue else (kind, key[0], order, app))
+                    due.append((deadline, *apps[app], app))
             heapq.heapify(due)
             budget = self.PASS_TICKS * len(apps)
             while due and budget:
@@ -445,11 +445,12 @@ class AppTicker:
                     continue
                 self._wait(app)
                 now = _time.monotonic()
-                if min(cohorts)[0] <= now:    # fell due while the pass ran: before the rest
+                if min(cohorts)[0] <= now:    # fell due while the pass ran: into it, by deadline
                     for key in [key for key in cohorts if key[0] <= now]:
+                        deadline = key[0] + 2 * key[1] / TICK_SLACK
                         for waiting in cohorts.pop(key):
                             del cohort_of[waiting]
-                            heapq.heappush(due, (-1, key[0] + 2 * key[1] / TICK_SLACK, apps[waiting][1], waiting))
+                            heapq.heappush(due, (deadline, *apps[waiting], waiting))
         finally:
             for entry in due:     # not run: the budget ran out (or a tick raised)
                 if entry[-1] in apps:

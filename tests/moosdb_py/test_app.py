@@ -290,6 +290,36 @@ def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_pr
     assert missed <= 2 and ran >= 7, f"the last kind ran {ran} ticks and missed {missed} of ~10 in 2 s"
 
 
+def test_a_fast_kind_launched_last_runs_first_in_a_wake_up_it_shares_with_a_slow_batch():
+    """Four apps of one kind at AppTick 10 (100 ms) whose iterations take 12 ms, launched before an app of
+    another kind at AppTick 50 (20 ms): each of the slow ticks falls due with a fast one. A pass goes by
+    deadline (two periods after the tick, when a tick not yet run counts as missed), so the fast app runs
+    first, not after the 48 ms batch (past its 40 ms deadline: one tick missed per batch)."""
+    async def scenario():
+        db = MOOSDB(port=0, time_warp=1)
+        await db.start()
+        slow = [Busy(name=f"counter_slow{i}", port=db.port, time_warp=1, seconds=0.012) for i in range(4)]
+        fast = Counter(name="counter_fast", port=db.port, time_warp=1)
+        tasks = []
+        for app in (*slow, fast):
+            app.client.local_db = db
+            app.app_tick = 50 if app is fast else 10
+            tasks.append(asyncio.create_task(app.run_async()))
+            await async_wait_until(lambda: app.iterations >= 1)
+        await asyncio.sleep(0.3)
+        ran, missed = fast.iterations, fast.ticks_missed
+        await asyncio.sleep(2.0)
+        ran, missed = fast.iterations - ran, fast.ticks_missed - missed
+        for app in (*slow, fast):
+            app.stop()
+        await asyncio.wait_for(asyncio.gather(*tasks), 5)
+        db.close()
+        return ran, missed
+    ran, missed = asyncio.run(scenario())
+    # after the batch it would miss one tick in every five (about 20 in 2 s); allow a scheduling hiccup or two
+    assert missed <= 3 and ran >= 90, f"the fast app ran {ran} ticks and missed {missed} of ~100 in 2 s"
+
+
 def test_a_wake_up_runs_the_apps_of_one_kind_together_in_launch_order():
     """Two vessels' apps hosted together (kinds A and B, launched A1 B1 A2 B2) with ticks due together: a wake-up
     runs A1 A2 B1 B2 (one app's code for every vessel while it is in the processor's caches), the kinds in the
