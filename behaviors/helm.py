@@ -212,26 +212,32 @@ class Helm:
         self._spawn(now, out)
         mode_posts = self._evaluate_modes(now)
         functions: list[IvPFunction] = []
-        bhv_posts: list[tuple[IvPBehavior, Post]] = []
+        bhv_posts: list[tuple[str, list[Post]]] = []    # each behaviour's name and posts, in order
         for bhv in self.behaviors:
             fn = bhv.tick(now)
             if fn is not None:
                 functions.append(fn)
-            bhv_posts += [(bhv, p) for p in bhv.take_posts()]
+            posts = bhv.take_posts()
+            if posts:
+                bhv_posts.append((bhv.name, posts))
         solve_start = perf_counter()
         self.decision = solve(self.domain, functions) if functions else {}
         self._note_time("create_time", solve_start - loop_start)
         self._note_time("solve_time", perf_counter() - solve_start)
         out += mode_posts
         error = False
-        for bhv, post in bhv_posts:
-            error = error or post.var == "BHV_ERROR"
-            key = f"{bhv.name}{post.var}{post.key}"
-            if not post.repeatable and self.last_sent.get(key) == post.value:
-                continue
-            self.last_sent[key] = post.value
-            self.info.set(post.var, post.value, now)
-            out.append((post.var, post.value, f"{self.iteration}:{bhv.name}"))
+        last_sent, info = self.last_sent, self.info
+        for name, posts in bhv_posts:
+            aux = f"{self.iteration}:{name}"
+            for post in posts:
+                var, value = post.var, post.value
+                error = error or var == "BHV_ERROR"
+                key = name + var + post.key
+                if not post.repeatable and last_sent.get(key) == value:
+                    continue
+                last_sent[key] = value
+                info.set(var, value, now)
+                out.append((var, value, aux))
         out += self._life_events(now)
         missing = missing_decisions(self.domain, self.decision) if functions else []
         if error:

@@ -77,6 +77,29 @@ def _rescale(values: np.ndarray, top: float) -> tuple[np.ndarray, float, float]:
     return _shift_scale(values, lo, hi, top / (hi - lo))
 
 
+def _rescale_kept(values: np.ndarray, top: float) -> tuple[np.ndarray, float, float]:
+    """`_rescale`, kept for a read-only array (a ZAIC kept by `zaic_peak`: a behaviour's speed peak, the same
+    array every helm iteration while its cruise speed holds) and handed out read-only; a writable array is
+    rescaled every time (its values may change)."""
+    if values.flags.writeable:
+        return _rescale(values, top)
+    key = (id(values), top)
+    kept = _RESCALED.get(key)
+    if kept is not None and kept[0] is values:   # the entry holds the array: its id is not reused meanwhile
+        return kept[1]
+    out, lo, hi = _rescale(values, top)
+    if out is not values:
+        out.setflags(write=False)
+    if len(_RESCALED) >= RESCALED_KEPT:
+        del _RESCALED[next(iter(_RESCALED))]     # the oldest
+    _RESCALED[key] = (values, (out, lo, hi))
+    return out, lo, hi
+
+
+RESCALED_KEPT = 256
+_RESCALED: dict[tuple[int, float], tuple[np.ndarray, tuple[np.ndarray, float, float]]] = {}
+
+
 def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 50.0,
            speed_weight: float = 50.0, pwt: float = 100.0) -> IvPFunction:
     """Course x speed: each rescaled to its weight, summed on the product grid, rescaled to 0..100.
@@ -85,8 +108,8 @@ def couple(f_course: IvPFunction, f_speed: IvPFunction, course_weight: float = 5
     into them: the result keeps the parts (and their exact bounds), and the full grid is built
     only if someone reads it.
     """
-    c, c_lo, c_hi = _rescale(f_course.values, course_weight)
-    s, s_lo, s_hi = _rescale(f_speed.values, speed_weight)
+    c, c_lo, c_hi = _rescale_kept(f_course.values, course_weight)
+    s, s_lo, s_hi = _rescale_kept(f_speed.values, speed_weight)
     span = c_hi - c_lo + s_hi - s_lo
     if span > 0:
         k = 100.0 / span
