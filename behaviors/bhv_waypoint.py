@@ -332,13 +332,13 @@ class BHV_Waypoint(IvPBehavior):
         return d + max(self.repeat - self.repeats_sofar, 0) * loop if self.perpetual else d
 
     def steering_point(self, osx: float, osy: float) -> tuple[float, float]:
-        nxt = tuple(self.points[self.ix])
+        nxt = tuple(self.points[self.ix].tolist())   # plain floats: the same IEEE sums as numpy's scalars, cheaper
         if self.lead <= 0 or not all(c.evaluate(self.info.get) for c in self.lead_conditions):
             return nxt
         if self.ix > 0:
-            anchor = tuple(self.points[self.ix - 1])
+            anchor = tuple(self.points[self.ix - 1].tolist())
         elif self.cycles > 0:
-            anchor = tuple(self.points[-1])
+            anchor = tuple(self.points[-1].tolist())
         elif self.lead_to_start and self.lead_start is not None:
             anchor = self.lead_start
         else:
