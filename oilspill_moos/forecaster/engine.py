@@ -13,7 +13,8 @@ Kinds (``KINDS``):
   (``forcing_error``): the observed centroids' motion against the forcing-predicted motion gives a
   drift correction, carried on over the horizon, blended with the observed constant velocity as far as
   a straight line explains the history better than the forcing does (``constant_velocity_weight``);
-  its footprint is scaled to the observed area trend (``trend_area``, as constant-velocity-growth grows);
+  a lobed outline's history is read from one lobe's track (``lobe_track``); its footprint is grown,
+  part by part, to the observed area trend (``trend_area``, as constant-velocity-growth grows);
 - ``ltc-rk4``, ``ltc-euler``, ``ltc-fused``, ``lstm``: the corrected prior moved on by a learned
   residual drift, and the ensemble widened by the learned spread of its error. The residual is scaled
   by a gain fitted on the validation split (``Settings.gain``): it is trusted less where the history
@@ -37,7 +38,7 @@ fitted on validation data (``calibration.json``) so that the nominal 95 % radius
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from shapely import affinity
@@ -59,6 +60,7 @@ TREND_H = 6.0                  # constant-velocity fits the observations of the 
 DRIFT_MEMORY_H = 1.0
 CENTROID_NOISE_M = 30.0
 DRIFT_PRIOR_MS = {True: 0.05, False: 0.1}          # forcing over the horizon given / held
+LOBE_FRACTION = 0.9        # an outline whose largest part holds less of its area is lobed (``lobe_track``)
 # The ridge (hours of lever arm) when the residual is as consistent as the centroid noise, forcing given ahead.
 DRIFT_SHRINK_H = CENTROID_NOISE_M / DRIFT_PRIOR_MS[True] / 3600.0
 MEMBERS = 32
@@ -134,6 +136,26 @@ def _forcing_row(env) -> np.ndarray:
     return row
 
 
+def lobe_track(obs: Observations, params: DriftParameters) -> Observations:
+    """``obs`` described by one lobe's track when its latest outline is lobed (largest part under
+    ``LOBE_FRACTION`` of the area), else ``obs`` itself. The centroid of separate lobes is not a
+    material point: a lobe fed by a continuing release, or lobes trading area as the outline is drawn,
+    move it in ways no drift does, and the forcing error and constant velocity read from it are wrong
+    (founding OpenOil set, multi-lobe slicks: the corrected prior 0.38 against 0.45 IoU at 15 h). The
+    track follows the latest observation's largest part back through the history, each step to the
+    part nearest where the forcing says it was, so near-equal lobes trading the first place do not
+    make it jump."""
+    if obs.shapes[-1].largest_fraction >= LOBE_FRACTION:
+        return obs
+    drift_of = obs.drift_between(params)
+    parts = [F.polygon_parts(g) for g in obs.geometries]
+    chosen = [parts[-1][0]]
+    for i in range(len(parts) - 2, -1, -1):
+        before = np.asarray(chosen[-1].centroid.coords[0]) - drift_of(i, i + 1) * (obs.times_s[i + 1] - obs.times_s[i])
+        chosen.append(min(parts[i], key=lambda p: np.hypot(*(np.asarray(p.centroid.coords[0]) - before))))
+    return replace(obs, shapes=[F.Shape.of(p) for p in reversed(chosen)])
+
+
 def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
     """Drift error of the given forcing (m/s, plane axes) estimated from the observed history.
 
@@ -146,6 +168,7 @@ def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
     t = np.asarray(obs.times_s, float)
     if len(t) < 2:
         return np.zeros(2)
+    obs = lobe_track(obs, params)
     track = displacement(obs.track, float(t[0]), t, params.windage, params.deflection_deg)
     residual = np.array([s.centroid for s in obs.shapes]) - track
     w = np.exp((t - t[-1]) / (3600.0 * DRIFT_MEMORY_H))
@@ -180,6 +203,7 @@ def constant_velocity_weight(obs: Observations, params: DriftParameters) -> floa
     t = np.asarray(obs.times_s, float)
     if len(t) < 3:
         return 0.0
+    obs = lobe_track(obs, params)
     centroids = np.array([s.centroid for s in obs.shapes])
     forced = displacement(obs.track, float(t[0]), t, params.windage, params.deflection_deg)
     cv, forcing = (max(line_misfit(t, y), CENTROID_NOISE_M) ** 2 for y in (centroids, centroids - forced))
@@ -200,6 +224,7 @@ def history_correction(obs: Observations, params: DriftParameters, horizons_h, w
     ``constant_velocity_weight``)."""
     horizons = tuple(horizons_h)
     horizons_s = 3600.0 * np.asarray(horizons, float)
+    obs = lobe_track(obs, params)
     drift_m = horizons_s[:, None] * forcing_error(obs, params)[None, :]
     weight = constant_velocity_weight(obs, params) if weight is None else weight
     if weight > 0:
@@ -246,11 +271,15 @@ def baseline_geometry(kind: str, obs: Observations, horizon_s: float) -> BaseGeo
 
 
 def scaled_to(geometry: BaseGeometry, area: float) -> BaseGeometry:
-    """``geometry`` scaled about its centroid to ``area`` (its centroid and shape kept)."""
+    """``geometry`` grown (or shrunk) to ``area``: every part scaled about its own centroid by the one
+    factor that takes the whole to ``area``, parts that grow into each other merged. Scaled about the
+    whole outline's centroid instead, two lobes would be pushed apart as they grow (founding OpenOil
+    set, multi-lobe slicks: physics-corrected 0.35 -> 0.38 IoU at 15 h with per-part scaling)."""
     if geometry.is_empty or geometry.area <= 0:
         return geometry
     factor = math.sqrt(area / geometry.area)
-    return affinity.scale(geometry, factor, factor, origin=tuple(F.second_moments(geometry)[1]))
+    return F.repaired(MultiPolygon([affinity.scale(p, factor, factor, origin="centroid")
+                                    for p in F.polygon_parts(geometry)]))
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -155,8 +155,9 @@ def held_draw(draw: int) -> bool:
 
 
 # Raised whenever what an example holds changes in a way the cache key below cannot see (2: targets
-# against the prior without its random walk, observations repaired by make_valid's "structure" method).
-EXAMPLES_VERSION = 2
+# against the prior without its random walk, observations repaired by make_valid's "structure" method;
+# 3: the forcing error and constant-velocity weight of a lobed outline read from one lobe's track).
+EXAMPLES_VERSION = 3
 
 
 def scenario_examples(scenario, draw: int, params: DriftParameters, cache_dir: Path | None = None) -> list:

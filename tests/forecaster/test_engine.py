@@ -112,6 +112,55 @@ def drifting_history(offset, forcing_row, hours, size=2_000.0):
     return planar_observations(geoms, hours, np.tile(forcing_row, (len(hours), 1)), ahead=[forcing_row] * 15)
 
 
+def lobes_history(radii_a, radii_b, drift_b: bool):
+    """Two lobes observed hourly under constant forcing: lobe a drifting exactly with the forcing's
+    drift, lobe b 12 km to its side, drifting too (``drift_b``) or staying where it is (a continuing
+    release feeding it); their radii per hour given. (obs, lobe a's centroids, the drift velocity)."""
+    forcing = [6.0, 1.0, 0.1, -0.05]
+    params = E.DriftParameters()
+    velocity = drift_velocity(np.asarray(forcing), params.windage, params.deflection_deg)
+    side = np.array([-velocity[1], velocity[0]]) / np.linalg.norm(velocity) * 12_000.0
+    hours = np.arange(float(len(radii_a)))
+    a = [velocity * 3600.0 * h for h in hours]
+    b = [side + (a[i] if drift_b else 0.0) for i in range(len(hours))]
+    geoms = [MultiPolygon([Point(*pa).buffer(ra, quad_segs=32), Point(*pb).buffer(rb, quad_segs=32)])
+             for pa, pb, ra, rb in zip(a, b, radii_a, radii_b)]
+    return planar_observations(geoms, hours, np.tile(forcing, (len(hours), 1)), ahead=[forcing] * 15), np.array(a)
+
+
+def test_a_fed_lobe_does_not_read_as_a_forcing_error():
+    """Known answer: a lobe drifting exactly with the forcing beside a smaller lobe that stays put and
+    grows (a continuing release). The whole outline's centroid lags the forcing (a spurious error);
+    the lobe track follows the drifting lobe: no forcing error, and its centroids are that lobe's."""
+    params = E.DriftParameters()
+    obs, drifting = lobes_history([2_000.0] * 9, np.linspace(300.0, 1_500.0, 9), drift_b=False)
+    assert obs.shapes[-1].largest_fraction < E.LOBE_FRACTION
+    track = E.lobe_track(obs, params)
+    assert np.allclose([s.centroid for s in track.shapes], drifting, atol=1.0)
+    lag = np.array([s.centroid for s in obs.shapes]) - drifting      # where the outline's centroid reads
+    assert np.linalg.norm(lag[-1] - lag[0]) > 1_000.0
+    assert np.linalg.norm(E.forcing_error(obs, params)) < 1e-4
+
+
+def test_lobes_trading_first_place_keep_one_track():
+    """Two lobes drifting together with the forcing, trading area so that the larger one alternates:
+    the whole outline's centroid swings between them (a spurious error and a jagged track), the lobe
+    track stays on one lobe, so the forcing error is zero and constant velocity and forcing explain it
+    equally (weight 0.5)."""
+    params = E.DriftParameters()
+    swing = 1_500.0 + 400.0 * np.array([1, -1, 1, -1, 1, -1, 1, -1, 1.0])
+    obs, drifting = lobes_history(swing, 3_000.0 - swing, drift_b=True)
+    assert obs.shapes[-1].largest_fraction < E.LOBE_FRACTION
+    lag = np.array([s.centroid for s in obs.shapes]) - drifting
+    assert np.linalg.norm(lag[1] - lag[0]) > 1_000.0                  # the outline's centroid swings
+    track = E.lobe_track(obs, params)
+    assert np.allclose([s.centroid for s in track.shapes], drifting, atol=1.0)
+    assert np.linalg.norm(E.forcing_error(obs, params)) < 1e-4
+    assert E.constant_velocity_weight(obs, params) == pytest.approx(0.5)
+    one = drifting_history(np.zeros(2), [6.0, 1.0, 0.1, -0.05], np.arange(9.0))
+    assert E.lobe_track(one, params) is one         # a single body is its own track
+
+
 def test_forcing_error_recovers_a_known_drift_error():
     """Known answer: the slick moves at the forcing's drift plus (0.12, -0.05) m/s. Weighted least squares
     recovers that velocity, pulled towards zero by exactly the documented ridge factor."""
@@ -212,6 +261,24 @@ def test_physics_corrected_spreads_at_the_observed_area_trend():
         assert corrected.geometry.area == pytest.approx(E.trend_area(obs, 3600.0 * horizon), rel=0.08)
         assert E.trend_area(obs, 3600.0 * horizon) == pytest.approx(48e6 + 4e6 * horizon, rel=1e-3)
         assert np.linalg.norm(corrected.centroid - physics.centroid) < 100.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.3, 4.0), st.floats(500.0, 9_000.0), st.floats(0.2, 0.9))
+def test_growing_two_lobes_keeps_each_lobe_in_place(factor, gap_m, second_share):
+    """Two lobes grown or shrunk to a target area: each part is scaled about its own centroid, so the
+    lobes keep their centroids (not pushed apart as the whole outline grows) and the area is the
+    target's while they stay apart."""
+    big = Point(0, 0).buffer(1_000.0, quad_segs=64)
+    small = Point(4_000.0 + gap_m, 0).buffer(1_000.0 * math.sqrt(second_share), quad_segs=64)   # apart even at 4x
+    lobes = MultiPolygon([big, small])
+    grown = E.scaled_to(lobes, factor * lobes.area)
+    assert grown.area == pytest.approx(factor * lobes.area, rel=1e-6)
+    parts = F.polygon_parts(grown)
+    assert len(parts) == 2
+    for before, after in zip(F.polygon_parts(lobes), parts):
+        assert after.centroid.distance(before.centroid) < 1e-6 * gap_m
+        assert after.area == pytest.approx(factor * before.area, rel=1e-6)
 
 
 def test_learned_correction_at_any_horizon():
