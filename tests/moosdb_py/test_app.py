@@ -261,23 +261,21 @@ def test_a_fast_app_runs_between_slow_ones_due_in_the_same_wake_up():
     asyncio.run(scenario())
 
 
-def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_process():
-    """Four apps of one kind (AppTick 50, 6 ms iterations: 1.2 times the processor) launched before one
-    app of another kind (AppTick 5): the passes run out of ticks before they reach the later kind, so
-    the next wake-up runs that app first once it is a period late, and it misses few of its ticks,
-    where otherwise it would wait behind the busy kind's ticks in every pass and miss most."""
+def _busy_kind_then_one_app(busy_tick: float, seconds: float, last_tick: float, settle: float) -> tuple[int, int]:
+    """Four Busy apps of one kind (AppTick `busy_tick`, iterations of `seconds`) launched before one Counter
+    (AppTick `last_tick`), in one loop with their DB: (ticks the Counter ran, ticks it missed) over 2 s."""
     async def scenario():
         db = MOOSDB(port=0, time_warp=1)
         await db.start()
-        busy = [Busy(name=f"counter_busy{i}", port=db.port, time_warp=1, seconds=0.006) for i in range(4)]
+        busy = [Busy(name=f"counter_busy{i}", port=db.port, time_warp=1, seconds=seconds) for i in range(4)]
         last = Counter(name="counter_last", port=db.port, time_warp=1)
         tasks = []
         for app in (*busy, last):
             app.client.local_db = db
-            app.app_tick = 5 if app is last else 50
+            app.app_tick = last_tick if app is last else busy_tick
             tasks.append(asyncio.create_task(app.run_async()))
             await async_wait_until(lambda: app.iterations >= 1)
-        await asyncio.sleep(0.5)
+        await asyncio.sleep(settle)
         ran, missed = last.iterations, last.ticks_missed
         await asyncio.sleep(2.0)
         ran, missed = last.iterations - ran, last.ticks_missed - missed
@@ -286,7 +284,15 @@ def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_pr
         await asyncio.wait_for(asyncio.gather(*tasks), 5)
         db.close()
         return ran, missed
-    ran, missed = asyncio.run(scenario())
+    return asyncio.run(scenario())
+
+
+def test_the_kind_launched_last_keeps_its_ticks_while_the_others_saturate_the_process():
+    """Four apps of one kind (AppTick 50, 6 ms iterations: 1.2 times the processor) launched before one
+    app of another kind (AppTick 5): the passes run out of ticks before they reach the later kind, so
+    the next wake-up runs that app first once it is a period late, and it misses few of its ticks,
+    where otherwise it would wait behind the busy kind's ticks in every pass and miss most."""
+    ran, missed = _busy_kind_then_one_app(busy_tick=50, seconds=0.006, last_tick=5, settle=0.5)
     assert missed <= 2 and ran >= 7, f"the last kind ran {ran} ticks and missed {missed} of ~10 in 2 s"
 
 
@@ -295,27 +301,7 @@ def test_a_fast_kind_launched_last_runs_first_in_a_wake_up_it_shares_with_a_slow
     another kind at AppTick 50 (20 ms): each of the slow ticks falls due with a fast one. A pass goes by
     deadline (two periods after the tick, when a tick not yet run counts as missed), so the fast app runs
     first, not after the 48 ms batch (past its 40 ms deadline: one tick missed per batch)."""
-    async def scenario():
-        db = MOOSDB(port=0, time_warp=1)
-        await db.start()
-        slow = [Busy(name=f"counter_slow{i}", port=db.port, time_warp=1, seconds=0.012) for i in range(4)]
-        fast = Counter(name="counter_fast", port=db.port, time_warp=1)
-        tasks = []
-        for app in (*slow, fast):
-            app.client.local_db = db
-            app.app_tick = 50 if app is fast else 10
-            tasks.append(asyncio.create_task(app.run_async()))
-            await async_wait_until(lambda: app.iterations >= 1)
-        await asyncio.sleep(0.3)
-        ran, missed = fast.iterations, fast.ticks_missed
-        await asyncio.sleep(2.0)
-        ran, missed = fast.iterations - ran, fast.ticks_missed - missed
-        for app in (*slow, fast):
-            app.stop()
-        await asyncio.wait_for(asyncio.gather(*tasks), 5)
-        db.close()
-        return ran, missed
-    ran, missed = asyncio.run(scenario())
+    ran, missed = _busy_kind_then_one_app(busy_tick=10, seconds=0.012, last_tick=50, settle=0.3)
     # after the batch it would miss one tick in every five (about 20 in 2 s); allow a scheduling hiccup or two
     assert missed <= 3 and ran >= 90, f"the fast app ran {ran} ticks and missed {missed} of ~100 in 2 s"
 
