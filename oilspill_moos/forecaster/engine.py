@@ -81,6 +81,7 @@ class Observations:
     times_s: np.ndarray
     environments: np.ndarray          # [T, 4] wind u/v, current u/v at each observation
     track: ForcingTrack               # observation forcing, then the horizon forcing when given
+    lobe_tracks: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # ``lobe_track``'s, per params
 
     @property
     def forcing_ahead(self) -> bool:
@@ -147,13 +148,16 @@ def lobe_track(obs: Observations, params: DriftParameters) -> Observations:
     make it jump."""
     if obs.shapes[-1].largest_fraction >= LOBE_FRACTION:
         return obs
+    if params in obs.lobe_tracks:       # a forecast reads it for its features, weight and correction
+        return obs.lobe_tracks[params]
     drift_of = obs.drift_between(params)
     parts = [F.polygon_parts(g) for g in obs.geometries]
     chosen = [parts[-1][0]]
     for i in range(len(parts) - 2, -1, -1):
         before = np.asarray(chosen[-1].centroid.coords[0]) - drift_of(i, i + 1) * (obs.times_s[i + 1] - obs.times_s[i])
         chosen.append(min(parts[i], key=lambda p: np.hypot(*(np.asarray(p.centroid.coords[0]) - before))))
-    return replace(obs, shapes=[F.Shape.of(p) for p in reversed(chosen)])
+    obs.lobe_tracks[params] = replace(obs, shapes=[F.Shape.of(p) for p in reversed(chosen)])
+    return obs.lobe_tracks[params]
 
 
 def forcing_error(obs: Observations, params: DriftParameters) -> np.ndarray:
