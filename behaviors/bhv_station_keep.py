@@ -186,7 +186,8 @@ class BHV_StationKeep(IvPBehavior):
         speed = self.desired_speed(self.dist) if self.dist >= 0 else 0.0
         course = heading if swinging and heading is not None else float(bearing(osx, osy, *self.station))
         spd = zaic_peak(self.domain.var("speed"), [PeakComponent(speed, 0, 0.4, 0, 0, 25)])
-        crs = zaic_peak(self.domain.var("course"), [PeakComponent(course, 0, 180, 0, 0, 100)], value_wrap=True)
+        crs = zaic_peak(self.domain.var("course"), [PeakComponent(course, 0, 180, 0, 0, 100)], value_wrap=True,
+                       keep=False)
         return couple(IvPFunction(("course",), crs), IvPFunction(("speed",), spd), 50, 50, self.pwt)
 
     def on_update_applied(self) -> None:

@@ -19,6 +19,9 @@ from .parameters import (BOOLEAN, NON_NEGATIVE, NUMBER, POSITIVE, TEXT, Parser, 
 from .zaic import PeakComponent, zaic_peak
 
 
+DRAWN_KEPT = 64    # texts kept per behaviour (a leg's next point and the route drawn: a few at a time)
+
+
 def _ratio(value: str, key: str) -> float:
     ratio = parse_number(value, key, 1)
     if ratio > 99:
@@ -91,6 +94,7 @@ class BHV_Waypoint(IvPBehavior):
         super().__init__(*args, **kwargs)
         self.points = np.zeros((0, 2))
         self._seglist: tuple[bytes, str] = (b"", "")   # the points' bytes and their pts={...} text, built once
+        self._drawn: dict[tuple, str] = {}   # VIEW_SEGLIST/VIEW_POINT texts posted every iteration, by what they show
         self.reversed = False
         self.ix = 0
         self.cpa: float | None = None
@@ -243,6 +247,7 @@ class BHV_Waypoint(IvPBehavior):
                "`VIEW_POINT`s; other keys ignored as MOOS-IvP does; lines accumulate")
     def _set_visual_hints(self, value: str) -> None:
         apply_visual_hints(self.hints, value)
+        self._drawn.clear()
 
     def _greedy_tour_when_nav_known(self) -> None:
         """The tour starts from ownship, so at startup it waits for the first NAV_X/NAV_Y."""
@@ -380,7 +385,8 @@ class BHV_Waypoint(IvPBehavior):
         else:
             spd = zaic_peak(spd_var, [PeakComponent(cruise, cruise / 2, 1.6, 20, 0, 100)])
         crs = zaic_peak(crs_var, [PeakComponent(float(bearing(osx, osy, sx, sy)), 0, 180, 50, 0, 100),
-                                  PeakComponent(heading, 30, 180, 5, 0, 20)], value_wrap=True, max_mode=False)
+                                  PeakComponent(heading, 30, 180, 5, 0, 20)], value_wrap=True, max_mode=False,
+                       keep=False)
         return couple(IvPFunction(("course",), crs), IvPFunction(("speed",), spd),
                       self.ratio, 100 - self.ratio, self.pwt)
 
@@ -392,12 +398,22 @@ class BHV_Waypoint(IvPBehavior):
 
     def post_point(self, label: str, x: float, y: float, active: bool) -> None:
         """Next point and track point in the nextpt hint colours (the track point drawn smaller)."""
-        text = f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},active={str(active).lower()}"
-        if active:
-            size = self.hints["nextpt_vertex_size"] if label == "nextpt" else "4"
-            lcolor = self.hints["nextpt_lcolor"] if label == "nextpt" else self.hints["nextpt_color"]
-            text += f",vertex_color={self.hints['nextpt_color']},label_color={lcolor},vertex_size={size}"
+        key = (label, x, y, active)     # the next point is the same one every iteration of a leg: its text is kept
+        text = self._drawn.get(key)
+        if text is None:
+            text = f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},active={str(active).lower()}"
+            if active:
+                size = self.hints["nextpt_vertex_size"] if label == "nextpt" else "4"
+                lcolor = self.hints["nextpt_lcolor"] if label == "nextpt" else self.hints["nextpt_color"]
+                text += f",vertex_color={self.hints['nextpt_color']},label_color={lcolor},vertex_size={size}"
+            if label == "nextpt":
+                self._keep_drawn(key, text)
         self.post("VIEW_POINT", text, key=label)
+
+    def _keep_drawn(self, key: tuple, text: str) -> None:
+        if len(self._drawn) >= DRAWN_KEPT:
+            self._drawn.clear()
+        self._drawn[key] = text
 
     def measure_leg(self, osx: float, osy: float) -> None:
         """WPT_EFF_*: straight-line versus flown distance and time from the last mark to here.
@@ -492,8 +508,14 @@ class BHV_Waypoint(IvPBehavior):
             self.post(self.dist_next_var, round(dist, 2))
         if self.dist_prev_var:
             self.post(self.dist_prev_var, round(float(distance(osx, osy, *self.prev)), 2))
-        self.post("VIEW_SEGLIST", f"{self._points_text()},label={self.ownship}_{self.name}" + hint_fields(
-            self.hints, "vertex_color", "edge_color", "label_color", "edge_size", "vertex_size"))
+        points = self._points_text()
+        key = ("seglist", points, self.name)
+        text = self._drawn.get(key)
+        if text is None:
+            text = f"{points},label={self.ownship}_{self.name}" + hint_fields(
+                self.hints, "vertex_color", "edge_color", "label_color", "edge_size", "vertex_size")
+            self._keep_drawn(key, text)
+        self.post("VIEW_SEGLIST", text)
         self.post_point("nextpt", nx, ny, active=True)
         return self.objective(osx, osy, heading)
 

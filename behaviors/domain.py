@@ -27,7 +27,11 @@ class DomainVar(BaseModel):
     @property
     def values(self) -> np.ndarray:
         """The grid points, built once per grid (every ZAIC and the solver read them each helm iteration); read-only."""
-        return _grid(self.low, self.delta, self.npts)
+        return _grid(self.low, self.high, self.npts)
+
+    def decision(self, index: int) -> float:
+        """The grid point at `index` as the helm decides it (rounded to 9 decimals)."""
+        return _decisions(self.low, self.high, self.npts)[index]
 
     def index_of(self, value: float) -> int:
         """The grid index nearest a value, clipped to the domain."""
@@ -37,10 +41,16 @@ class DomainVar(BaseModel):
 
 
 @functools.lru_cache(maxsize=256)
-def _grid(low: float, delta: float, npts: int) -> np.ndarray:
-    grid = low + np.arange(npts) * delta
+def _grid(low: float, high: float, npts: int) -> np.ndarray:
+    grid = low + np.arange(npts) * ((high - low) / (npts - 1) if npts > 1 else 0.0)   # DomainVar.delta
     grid.setflags(write=False)
     return grid
+
+
+@functools.lru_cache(maxsize=256)
+def _decisions(low: float, high: float, npts: int) -> tuple[float, ...]:
+    """Each grid point rounded to 9 decimals, made once per grid (the solver decides every helm iteration)."""
+    return tuple(round(float(v), 9) for v in _grid(low, high, npts))
 
 
 class IvPDomain(BaseModel):

@@ -28,6 +28,9 @@ ALWAYS_SUBSCRIBED = ("NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED", "NAV_DEPTH", 
                      "MOOS_MANUAL_OVERIDE", "DB_CLIENTS", "RESTART_HELM", "BHV_ABLE_FILTER", "HELM_MAP_CLEAR",
                      "IVPHELM_STATE")
 EMPTY_DECISIONS = ("NothingToDo", "NoGoalBehavior")
+TIMING_FIELDS = ("create_time", "solve_time", "loop_time", "max_create_time", "max_solve_time", "max_loop_time")
+SUMMARY_KEYS = ("ofnum", "warnings", *TIMING_FIELDS, "halted", "active_goal", "modes", "active_bhvs", "running_bhvs",
+                "idle_bhvs", "completed_bhvs")     # IVPHELM_SUMMARY's fields in order, then one var= per decision variable
 
 
 def build_behavior(spec: BehaviorSpec, domain: IvPDomain, info: InfoBuffer, ownship: str) -> IvPBehavior:
@@ -84,7 +87,9 @@ class Helm:
         self.seen_own_state = False
         self.deferred_done = False
         self.decision: dict[str, float] = {}
-        self.summary_fields: dict[str, str] = {}
+        self.summary_values: list[str] = []     # IVPHELM_SUMMARY's fields as last posted (SUMMARY_KEYS, then var=)
+        self._grouped: tuple = (None, None, {})   # the behaviours' names and states, and their groups' texts
+        self._modes_text: str | None = None       # IVPHELM_SUMMARY's modes field (None: mode_values changed)
         self.bhv_lists: dict[str, str] = {}
         self.last_map_clear = -1e9
         self.nav_grace = 5.0
@@ -92,8 +97,8 @@ class Helm:
         self.config_warnings: list[str] = []   # each one means MALCONFIG
         self.run_warnings: list[str] = []      # nav grace, holds: reported once each
         # IVPHELM_SUMMARY's timing fields, in its order: the latest create/solve/loop times and their maxima.
-        self.timing = dict.fromkeys(("create_time", "solve_time", "loop_time", "max_create_time", "max_solve_time",
-                                     "max_loop_time"), 0.0)
+        self.timing = dict.fromkeys(TIMING_FIELDS, 0.0)
+        self.nav_seen = False    # every NAV_* needed has been received
         self.nav_needed = ["NAV_X", "NAV_Y", "NAV_HEADING", "NAV_SPEED"] + (["NAV_DEPTH"] if "depth" in domain else [])
         self.desired_names = {v.name: self._desired_name(v.name) for v in domain.vars}
 
@@ -172,7 +177,10 @@ class Helm:
 
     def _holding(self, now: float) -> bool:
         """Nav hold (NAV_* not all seen yet) and hold_on_apps (apps not all in DB_CLIENTS)."""
+        if self.nav_seen and not self.hold_on_apps:     # the info buffer keeps every variable once set
+            return False
         missing = [v for v in self.nav_needed if self.info.get(v) is None]
+        self.nav_seen = not missing
         if missing and now - self.start_time > self.nav_grace:
             self._warn_once(f"No {','.join(missing)} received after nav_grace={self.nav_grace:g} s")
         if self.hold_on_apps:
@@ -283,6 +291,8 @@ class Helm:
 
     # ---- modes ----------------------------------------------------------------------
     def _evaluate_modes(self, now: float) -> list[HelmPost]:
+        if not self.modes:
+            return []
         pushed: dict[str, Value] = {}
 
         def lookup(var: str) -> Value | None:
@@ -304,6 +314,7 @@ class Helm:
             self.info.set(var, value, now)
             if self.mode_values.get(var) != value:
                 self.mode_values[var] = value
+                self._modes_text = None
                 out.append((var, value, ""))
         return out
 
@@ -331,33 +342,37 @@ class Helm:
         return out
 
     def _summary(self, now: float, functions: list[IvPFunction], halted: bool) -> list[HelmPost]:
-        groups = {"ACTIVE": [], "RUNNING": [], "IDLE": [], "COMPLETED": []}
-        for bhv in self.behaviors:
-            groups.get(bhv.state.upper(), groups["IDLE"]).append(bhv.name)
-        fields = {
-            "ofnum": str(len(functions)),
-            "warnings": str(len(self.config_warnings) + len(self.run_warnings)),
-            **{k: "%.4f" % v for k, v in self.timing.items()},   # printf-style: cheaper than format specs
-            "halted": str(halted).lower(),   # a behaviour posted BHV_ERROR
-            "active_goal": "false",
-            "modes": "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items())),
-            "active_bhvs": ":".join(groups["ACTIVE"]) or "none",
-            "running_bhvs": ":".join(groups["RUNNING"]) or "none",
-            "idle_bhvs": ":".join(groups["IDLE"]) or "none",
-            "completed_bhvs": ":".join(groups["COMPLETED"]) or "none",
-        }
+        names, states = [b.name for b in self.behaviors], [b.state for b in self.behaviors]
+        if names != self._grouped[0] or states != self._grouped[1]:    # the groups' texts, made when they change
+            groups = {"ACTIVE": [], "RUNNING": [], "IDLE": [], "COMPLETED": []}
+            for name, state in zip(names, states):
+                groups.get(state.upper(), groups["IDLE"]).append(name)
+            self._grouped = (names, states, {kind: (",".join(g), ":".join(g) or "none", float(len(g)))
+                                                   for kind, g in groups.items()})
+        texts = self._grouped[2]
+        if self._modes_text is None:
+            self._modes_text = "#".join(f"{k}@{v}" for k, v in sorted(self.mode_values.items()))
+        timing = self.timing
+        values = [str(len(functions)), str(len(self.config_warnings) + len(self.run_warnings)),
+                  *["%.4f" % timing[k] for k in TIMING_FIELDS],    # printf-style: cheaper than format specs
+                  "true" if halted else "false",   # a behaviour posted BHV_ERROR
+                  "false", self._modes_text, texts["ACTIVE"][1], texts["RUNNING"][1], texts["IDLE"][1],
+                  texts["COMPLETED"][1]]
         for v in self.domain.vars:
             d = self.decision.get(v.name)
-            fields[f"var={v.name}"] = "%s:%g" % (v.name, d) if d is not None else f"{v.name}:varbalk"
-        changed = [f"{k}={v}" if not k.startswith("var=") else f"var={v}"
-                   for k, v in fields.items() if self.summary_fields.get(k) != v]
-        self.summary_fields = fields
-        out: list[HelmPost] = [("IVPHELM_ITER", float(self.iteration), ""),
-                               ("IVPHELM_SUMMARY", ",".join([f"iter={self.iteration}",
-                                                             "utc_time=%.2f" % _time.time()] + changed), "")]
+            values.append("%s:%g" % (v.name, d) if d is not None else f"{v.name}:varbalk")
+        last = self.summary_values
+        fields = [f"iter={self.iteration}", "utc_time=%.2f" % _time.time()]
+        if len(last) != len(values):
+            last = [None] * len(values)
+        for i, value in enumerate(values):      # the fields that changed since the last summary
+            if value != last[i]:
+                fields.append(f"{SUMMARY_KEYS[i]}={value}" if i < len(SUMMARY_KEYS) else f"var={value}")
+        self.summary_values = values
+        out: list[HelmPost] = [("IVPHELM_ITER", float(self.iteration), ""), ("IVPHELM_SUMMARY", ",".join(fields), "")]
         for kind in ("ACTIVE", "RUNNING", "IDLE"):
-            text = ",".join(groups[kind])
+            text = texts[kind][0]
             if self.bhv_lists.get(kind) != text:
                 self.bhv_lists[kind] = text
-                out += [(f"IVPHELM_BHV_{kind}", text, ""), (f"IVPHELM_BHV_{kind}_CNT", float(len(groups[kind])), "")]
+                out += [(f"IVPHELM_BHV_{kind}", text, ""), (f"IVPHELM_BHV_{kind}_CNT", texts[kind][2], "")]
         return out

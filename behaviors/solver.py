@@ -26,29 +26,39 @@ def solve(domain: IvPDomain, functions: list[IvPFunction]) -> dict[str, float]:
     is decided on its own 1-D total (the argmax of a separable sum is the argmaxes of its parts);
     otherwise the total is built on the product grid of the variables mentioned."""
     used = [f for f in functions if f.pwt > 0]
-    names = [n for n in domain.names if any(n in f.vars for f in used)]
-    if not names:
-        return {}
-    if all(f.parts is not None for f in used):
+    separable = True
+    for f in used:
+        if f.parts is None:
+            separable = False
+            break
+    if separable:     # each variable's 1-D total, summed in the functions' order; decided in the domain's
         totals: dict[str, np.ndarray] = {}
         for f in used:
             k = _scale(f)[1]
             for name, part in zip(f.vars, f.parts):
-                totals[name] = part * k if name not in totals else totals[name] + part * k
-        index = [int(totals[n].argmax()) for n in names]
-    else:
-        shape = tuple(domain.var(n).npts for n in names)
-        total = np.zeros(shape)
-        for f in used:
-            lo, k = _scale(f)
-            axes = [names.index(v) for v in f.vars]
-            arr = np.transpose((f.values - lo) * k, np.argsort(axes))
-            full_shape = [1] * len(names)
-            for ax in sorted(axes):
-                full_shape[ax] = shape[ax]
-            total += arr.reshape(full_shape)
-        index = np.unravel_index(int(total.argmax()), shape)
-    return {n: round(float(domain.var(n).values[i]), 9) for n, i in zip(names, index)}
+                total = totals.get(name)
+                totals[name] = part * k if total is None else total + part * k
+        decision = {}
+        for var in domain.vars:
+            total = totals.get(var.name)
+            if total is not None:
+                decision[var.name] = var.decision(int(total.argmax()))
+        return decision
+    names = [n for n in domain.names if any(n in f.vars for f in used)]
+    if not names:
+        return {}
+    shape = tuple(domain.var(n).npts for n in names)
+    total = np.zeros(shape)
+    for f in used:
+        lo, k = _scale(f)
+        axes = [names.index(v) for v in f.vars]
+        arr = np.transpose((f.values - lo) * k, np.argsort(axes))
+        full_shape = [1] * len(names)
+        for ax in sorted(axes):
+            full_shape[ax] = shape[ax]
+        total += arr.reshape(full_shape)
+    index = np.unravel_index(int(total.argmax()), shape)
+    return {n: domain.var(n).decision(i) for n, i in zip(names, index)}
 
 
 def missing_decisions(domain: IvPDomain, decision: dict[str, float]) -> list[str]:

@@ -54,11 +54,16 @@ def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
 
 
 def zaic_peak(var: DomainVar, components: list[PeakComponent], value_wrap: bool = False,
-              max_mode: bool = True) -> np.ndarray:
+              max_mode: bool = True, *, keep: bool = True) -> np.ndarray:
     """Peaks combined by max (default) or summed, then "summit insist" for peaks between grid points.
 
     Read-only: the same peaks on the same grid give the same array, kept for the next call (a
-    behaviour asks for its speed peak every helm iteration, mostly with the same cruise speed)."""
+    behaviour asks for its speed peak every helm iteration, mostly with the same cruise speed).
+    `keep=False` for peaks that seldom come again (a course peak on a bearing that moves every
+    iteration): the same values, made afresh (writable) and not kept, so that they do not push the
+    kept ones out of the cache, here and in `ivp_function.couple`'s."""
+    if not keep:
+        return _combined_peak(var, components, value_wrap, max_mode)
     key = (var.low, var.high, var.npts, tuple(components), value_wrap, max_mode)
     u = _PEAKS.get(key)
     if u is None:

@@ -1,6 +1,7 @@
 """Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5), with 10
 spawned BHV_AvoidCollision behaviours (goal: under 5 ms), s1_alpha's own helm surveying, and a
-head-on encounter at 2 m/s.
+head-on encounter at 2 m/s. `--alpha-iterations N` only flies N iterations of s1_alpha's helm (for instruction
+counts: see the end of this file).
 
 s1_alpha's helm is timed twice: iterations back to back (caches warm), and with the CPU caches
 flushed between iterations (a sum over an array larger than the last-level cache), which is how
@@ -97,27 +98,37 @@ def bench_avoidance(n: int = 10, batches: int = 10, per_batch: int = 20) -> tupl
     return time_iterations(helm, 2.0, batches, per_batch, mail)
 
 
+def fly_alpha(iterations: int, each=None) -> None:
+    """`iterations` iterations of missions/s1_alpha's helm surveying from home (a Boat follows its
+    decisions); `each(i, iterate)` runs each iteration (iterate() does it), by default plainly."""
+    helm = Helm([read_bhv(ROOT / "missions" / "s1_alpha" / "alpha.bhv")], DOMAIN, "alpha", active_start=True)
+    helm.startup(0.0)
+    helm.on_mail("DEPLOY", "true", 0.0)
+    boat, t = Boat(0, -20, 180), 0.0
+    for i in range(iterations):
+        for var, value in boat.nav().items():
+            helm.on_mail(var, value, t)
+        posts = each(i, lambda: helm.iterate(t)) if each is not None else helm.iterate(t)
+        boat.step({v: val for v, val, _ in posts if v.startswith("DESIRED_")}, 0.25)
+        t += 0.25
+
+
 def bench_alpha(flush: bool, runs: int = 3, iterations: int = 400) -> float:
-    """Median CPU ms of one iteration of missions/s1_alpha's helm while it surveys (a Boat follows
-    its decisions), caches flushed between iterations or not."""
+    """Median CPU ms of one iteration of missions/s1_alpha's helm while it surveys, caches flushed
+    between iterations or not."""
     flusher = np.ones(8_000_000) if flush else None     # 64 MB: more than the last-level cache
     times = []
+
+    def timed(i: int, iterate):
+        start = time.process_time()
+        posts = iterate()
+        if i >= 40:
+            times.append(time.process_time() - start)
+        if flusher is not None:
+            flusher.sum()
+        return posts
     for _ in range(runs):
-        helm = Helm([read_bhv(ROOT / "missions" / "s1_alpha" / "alpha.bhv")], DOMAIN, "alpha", active_start=True)
-        helm.startup(0.0)
-        helm.on_mail("DEPLOY", "true", 0.0)
-        boat, t = Boat(0, -20, 180), 0.0
-        for i in range(iterations):
-            for var, value in boat.nav().items():
-                helm.on_mail(var, value, t)
-            start = time.process_time()
-            posts = helm.iterate(t)
-            if i >= 40:
-                times.append(time.process_time() - start)
-            boat.step({v: val for v, val, _ in posts if v.startswith("DESIRED_")}, 0.25)
-            t += 0.25
-            if flusher is not None:
-                flusher.sum()
+        fly_alpha(iterations, timed)
     return statistics.median(times) * 1e3
 
 
@@ -129,6 +140,11 @@ def head_on_figures(avoid: bool) -> tuple[float, float]:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--alpha-iterations":
+        # For instruction counts: `valgrind --tool=callgrind python helm_bench.py --alpha-iterations N` at two
+        # N (say 40 and 440); the difference over the iterations between is the cost of one surveying iteration.
+        fly_alpha(int(sys.argv[2]))
+        sys.exit()
     for n in (1, 5, 20):
         best, median = bench(n)
         print(f"helm iteration, {n:2d} active behaviours: {best:6.2f} ms CPU (median of batches {median:6.2f} ms)")
