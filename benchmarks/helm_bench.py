@@ -1,7 +1,9 @@
 """Helm iteration time with 1, 5 and 20 active behaviours (goal: under 5 ms with 5), with 10
 spawned BHV_AvoidCollision behaviours (goal: under 5 ms), s1_alpha's own helm surveying, and a
-head-on encounter at 2 m/s. `--alpha-iterations N` only flies N iterations of s1_alpha's helm (for instruction
-counts: see the end of this file).
+head-on encounter at 2 m/s. `--alpha-iterations N` only flies s1_alpha's helm, for instruction counts
+(`count_alpha`): `PYTHONHASHSEED=0 setarch -R valgrind --tool=callgrind --instr-atstart=no python
+benchmarks/helm_bench.py --alpha-iterations 400` counts iterations 40-440 alone (a count of the whole run
+varies by some 50 M instructions from run to run with the imports).
 
 s1_alpha's helm is timed twice: iterations back to back (caches warm), and with the CPU caches
 flushed between iterations (a sum over an array larger than the last-level cache), which is how
@@ -139,11 +141,28 @@ def head_on_figures(avoid: bool) -> tuple[float, float]:
     return closest, arrived
 
 
+def count_alpha(iterations: int) -> None:
+    """For instruction counts: under `setarch -R valgrind --tool=callgrind --instr-atstart=no` (with
+    PYTHONHASHSEED=0), 40 iterations of s1_alpha's helm uncounted, then `iterations` counted (callgrind_control
+    turns the counting on), with the helm's clocks fixed so that its summary does not depend on the speed."""
+    import os
+    import subprocess
+    import types
+
+    import behaviors.helm as helm_module
+    helm_module.perf_counter = lambda: 0.0
+    helm_module._time = types.SimpleNamespace(time=lambda: 0.0)
+
+    def each(i: int, iterate):
+        if i == 40:
+            subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], check=True, capture_output=True)
+        return iterate()
+    fly_alpha(40 + iterations, each)
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "--alpha-iterations":
-        # For instruction counts: `valgrind --tool=callgrind python helm_bench.py --alpha-iterations N` at two
-        # N (say 40 and 440); the difference over the iterations between is the cost of one surveying iteration.
-        fly_alpha(int(sys.argv[2]))
+        count_alpha(int(sys.argv[2]))
         sys.exit()
     for n in (1, 5, 20):
         best, median = bench(n)

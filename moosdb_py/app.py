@@ -344,7 +344,13 @@ class AppTicker:
     pass leaves the ticks with the longest to go. The apps of one kind tick in step, so they share a
     deadline and run together, kinds of one deadline in the order they were added (vessels hosted
     together: every vessel's helm while its code is in the caches; a vessel's simulator before its
-    helm), apps of one kind in the order they were added. A pass posts nothing until it ends (the
+    helm), apps of one kind in the order they were added; but of apps with one deadline, one that has
+    missed more ticks runs first. A pass held up (a machine whose other jobs take the processor) makes
+    its last apps late: in launch order those were always the kinds launched last among their
+    deadline's (a demo run of the seventh session: pContactMgrV20, last of the vessels' 4 Hz kinds,
+    uFldNodeBroker and pNodeReporter, last of the 2 Hz ones, just over 2 % of their ticks missed); the
+    app that missed most going first spreads such misses over the kinds that share the deadline. While
+    no app misses a tick, the launch order stands. A pass posts nothing until it ends (the
     wake-up's posts are routed together), so the order within it changes no app's mail. While the
     pass lasts, an app whose next tick falls due (without slack) joins it by its deadline, even one
     that already ran (many vessels' helms take longer than a PID's period: the PIDs run between them
@@ -429,7 +435,7 @@ class AppTicker:
                 deadline = key[0] + 2 * key[1] / TICK_SLACK    # two periods after the tick: then it counts missed
                 for app in cohorts.pop(key):
                     del cohort_of[app]
-                    due.append((deadline, *apps[app], app))
+                    due.append((deadline, -app.ticks_missed, *apps[app], app))
             heapq.heapify(due)
             budget = self.PASS_TICKS * len(apps)
             while due and budget:
@@ -450,7 +456,7 @@ class AppTicker:
                         deadline = key[0] + 2 * key[1] / TICK_SLACK
                         for waiting in cohorts.pop(key):
                             del cohort_of[waiting]
-                            heapq.heappush(due, (deadline, *apps[waiting], waiting))
+                            heapq.heappush(due, (deadline, -waiting.ticks_missed, *apps[waiting], waiting))
         finally:
             for entry in due:     # not run: the budget ran out (or a tick raised)
                 if entry[-1] in apps:
