@@ -288,7 +288,12 @@ class IvPBehavior:
         if dur.reset_requested(self.info):
             dur.reset(now)
         prev = self.state
-        failed = next((c for c in self.conditions if not c.evaluate(self.info.get)), None)
+        failed = None
+        lookup = self.info.get
+        for c in self.conditions:     # a loop, not next() over a generator: every behaviour, every iteration
+            if not c.evaluate(lookup):
+                failed = c
+                break
         if self.completed:
             state = "completed"
         elif failed is not None:

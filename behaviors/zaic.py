@@ -31,6 +31,10 @@ def _distances(var: DomainVar, components: list[PeakComponent], value_wrap: bool
     return d
 
 
+KNOTS_KEPT = 256
+_KNOTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
 def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
     """One component's utilities from the grid points' distances to its summit."""
     if c.minutil >= c.maxutil:
@@ -39,8 +43,13 @@ def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
     sd = min(c.summitdelta, c.maxutil - c.minutil) if pw > 0 else 0.0
     top = c.maxutil - sd
     if bw > 0 and sd >= 0:      # the usual shape is piecewise linear in d: one interpolation
-        xp, fp = ((0.0, pw, pw + bw), (c.maxutil, top, c.minutil)) if pw > 0 else ((0.0, bw), (c.maxutil, c.minutil))
-        return np.interp(d, xp, fp)
+        knots = ((0.0, pw, pw + bw), (c.maxutil, top, c.minutil)) if pw > 0 else ((0.0, bw), (c.maxutil, c.minutil))
+        arrays = _KNOTS.get(knots)
+        if arrays is None:      # as arrays, kept: np.interp converts tuples on every call, at 40 % of its cost here
+            if len(_KNOTS) >= KNOTS_KEPT:
+                _KNOTS.clear()
+            arrays = _KNOTS[knots] = (np.array(knots[0]), np.array(knots[1]))
+        return np.interp(d, *arrays)
     u = np.full(d.shape, c.minutil)
     if bw > 0:
         u = np.where(d <= pw + bw, top - (top - c.minutil) * (d - pw) / bw, u)
