@@ -12,8 +12,8 @@ Loss: MSE on the scaled targets, plus a Gaussian negative log-likelihood for the
 *detached* mean (so the spread never changes what the mean learns). AdamW, early stopping on the
 validation MSE, one CPU thread per model; ``--max-minutes`` caps each model's wall time.
 
-Gains (``fit_gains``): on the validation cases, per horizon, how much of a learned kind's residual drift
-to keep (``engine.Settings.gain``), the share with the highest mean IoU.
+Gains (``fit_gains``): on the validation cases, per horizon and outline class (lobed or not), how much
+of a learned kind's residual drift to keep (``engine.Settings.gain``), the share with the highest mean IoU.
 
 Calibration (``calibrate``): on the validation cases every kind forecasts, and per horizon its ensemble
 spread is scaled so that the nominal 95 % radius (``engine.RADIUS_95`` x ``uncertainty_m``) holds the
