@@ -137,6 +137,11 @@ def _forcing_row(env) -> np.ndarray:
     return row
 
 
+def lobed(shape: F.Shape) -> bool:
+    """Whether an outline is lobed: its largest part holds under ``LOBE_FRACTION`` of its area."""
+    return shape.largest_fraction < LOBE_FRACTION
+
+
 def lobe_track(obs: Observations, params: DriftParameters) -> Observations:
     """``obs`` described by one lobe's track when its latest outline is lobed (largest part under
     ``LOBE_FRACTION`` of the area), else ``obs`` itself. The centroid of separate lobes is not a
@@ -146,7 +151,7 @@ def lobe_track(obs: Observations, params: DriftParameters) -> Observations:
     track follows the latest observation's largest part back through the history, each step to the
     part nearest where the forcing says it was, so near-equal lobes trading the first place do not
     make it jump."""
-    if obs.shapes[-1].largest_fraction >= LOBE_FRACTION:
+    if not lobed(obs.shapes[-1]):
         return obs
     if params in obs.lobe_tracks:       # a forecast reads it for its features, weight and correction
         return obs.lobe_tracks[params]
@@ -235,7 +240,7 @@ def history_correction(obs: Observations, params: DriftParameters, horizons_h, w
         velocity, _ = trend(obs)
         forced = displacement(obs.track, 0.0, horizons_s, params.windage, params.deflection_deg)
         drift_m = (1 - weight) * drift_m + weight * (horizons_s[:, None] * velocity[None, :] - forced)
-    return Correction(drift_m, np.zeros(len(horizons)), np.zeros((len(horizons), 2)), horizons)
+    return Correction(drift_m, np.zeros((len(horizons), 2)), horizons)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -341,11 +346,10 @@ class PlanarForecast:
 
 @dataclass
 class Correction:
-    """What a learned model adds to the prior per horizon: residual drift (m, plane axes), log area
-    ratio, and its 1-sigma drift error (m, per plane axis)."""
+    """What a learned model adds to the prior per horizon: residual drift (m, plane axes) and its
+    1-sigma drift error (m, per plane axis)."""
 
     drift_m: np.ndarray          # [H, 2]
-    log_area: np.ndarray         # [H]
     sigma_m: np.ndarray          # [H, 2]
     horizons_h: tuple = F.HORIZONS_H
 
@@ -364,27 +368,29 @@ class Correction:
             beyond = flat[-1] * (wanted[:, None] / known[-1])
             return np.where((wanted > known[-1])[:, None], beyond, inside).reshape(len(wanted), *values.shape[1:])
 
-        return Correction(along(self.drift_m), along(self.log_area), along(self.sigma_m), tuple(horizons_h))
+        return Correction(along(self.drift_m), along(self.sigma_m), tuple(horizons_h))
 
     def gained(self, gain: np.ndarray) -> "Correction":
-        """The drift scaled by ``gain`` [H] (the spread and area ratio kept)."""
-        return Correction(self.drift_m * np.asarray(gain, float)[:, None], self.log_area, self.sigma_m, self.horizons_h)
+        """The drift scaled by ``gain`` [H] (the spread kept)."""
+        return Correction(self.drift_m * np.asarray(gain, float)[:, None], self.sigma_m, self.horizons_h)
 
     def plus(self, other: "Correction") -> "Correction":
-        """Both corrections at this one's horizons: drifts and log area ratios add, spreads add in quadrature."""
+        """Both corrections at this one's horizons: drifts add, spreads add in quadrature."""
         other = other.at(self.horizons_h)
-        return Correction(self.drift_m + other.drift_m, self.log_area + other.log_area,
-                          np.hypot(self.sigma_m, other.sigma_m), self.horizons_h)
+        return Correction(self.drift_m + other.drift_m, np.hypot(self.sigma_m, other.sigma_m), self.horizons_h)
 
 
 def correction_from(mean: np.ndarray, sigma: np.ndarray, angle: float) -> Correction:
     """A ``Correction`` from a model's raw outputs [H, 3] (frame km, km, log area ratio) in the frame
     turned by ``angle``: the residual drift turned back onto the plane; the drift spread made
-    isotropic (the rms of its two axes), so that it turns with the input too."""
+    isotropic (the rms of its two axes), so that it turns with the input too. The log area ratio is
+    the networks' third training target only: a forecast's area is the observed trend
+    (``trend_area``), and scaling the particles by the ratio before drawing them changed only the
+    drawn shape and the lobes' spacing (IoU -0.004 to -0.009 out of distribution, 2026-12-03)."""
     turn = F.rotation(angle)
     drift_m = 1e3 * mean[:, :2] @ turn.T
     sigma_iso = 1e3 * np.sqrt((sigma[:, 0] ** 2 + sigma[:, 1] ** 2) / 2)
-    return Correction(drift_m=drift_m, log_area=mean[:, 2], sigma_m=np.column_stack([sigma_iso, sigma_iso]))
+    return Correction(drift_m=drift_m, sigma_m=np.column_stack([sigma_iso, sigma_iso]))
 
 
 def envelope(mask: np.ndarray, grid, offsets: np.ndarray, level: float) -> MultiPolygon:
@@ -401,7 +407,7 @@ class Settings:
     params: DriftParameters = field(default_factory=DriftParameters)
     spread_scale: dict = field(default_factory=dict)   # kind -> [H] calibration factors at F.HORIZONS_H
     members: int = MEMBERS
-    residual_gain: dict = field(default_factory=dict)  # learned kind -> [H] gain factors at F.HORIZONS_H
+    residual_gain: dict = field(default_factory=dict)  # ``gain_key`` -> [H] gain factors at F.HORIZONS_H
 
     @classmethod
     def from_calibration(cls, blob: dict) -> "Settings":
@@ -421,11 +427,18 @@ class Settings:
         factors = self.spread_scale.get(self.scale_key(kind, forcing_ahead), self.spread_scale.get(kind))
         return np.ones(len(horizons_h)) if factors is None else at_horizons(factors, horizons_h)
 
-    def gain(self, kind: str, horizons_h, forcing_ahead: bool, weight: float) -> np.ndarray:
+    @staticmethod
+    def gain_key(kind: str, forcing_ahead: bool = True, lobed: bool = False) -> str:
+        """``residual_gain`` key: ``scale_key``, with " lobed" for the factors of lobed outlines."""
+        return Settings.scale_key(kind, forcing_ahead) + (" lobed" if lobed else "")
+
+    def gain(self, kind: str, horizons_h, forcing_ahead: bool, weight: float, lobed: bool = False) -> np.ndarray:
         """[H] share of a learned residual drift kept: clip(factor x (1 - ``weight``), 0, 1), ``weight`` the
-        history's ``constant_velocity_weight`` and the factor fitted per horizon on the validation
-        split (``train.fit_gains``); the whole residual where none was fitted."""
-        factors = self.residual_gain.get(self.scale_key(kind, forcing_ahead))
+        history's ``constant_velocity_weight`` and the factor fitted per horizon and outline class
+        (``lobed`` or not) on the validation split (``train.fit_gains``); a calibration without
+        lobed factors uses the others; the whole residual where none was fitted."""
+        factors = self.residual_gain.get(self.gain_key(kind, forcing_ahead, lobed),
+                                         self.residual_gain.get(self.gain_key(kind, forcing_ahead)))
         if factors is None:
             return np.ones(len(horizons_h))
         return np.clip(at_horizons(factors, horizons_h) * (1.0 - weight), 0.0, 1.0)
@@ -469,13 +482,13 @@ def forecast_plane(kind: str, obs: Observations, horizons_h, settings: Settings,
         weight = constant_velocity_weight(obs, settings.params)
         base = history_correction(obs, settings.params, horizons_h, weight)
         if correction is not None:
-            gain = settings.gain(kind, horizons_h, obs.forcing_ahead, weight)
+            gain = settings.gain(kind, horizons_h, obs.forcing_ahead, weight, lobed(obs.shapes[-1]))
             base = base.plus(correction.at(tuple(horizons_h)).gained(gain))
         correction = base
     frame, angle, origin = canonical(obs, settings.params)
     if correction is not None:
         turn = F.rotation(-angle)
-        correction = Correction(correction.drift_m @ turn.T, correction.log_area, correction.sigma_m, correction.horizons_h)
+        correction = Correction(correction.drift_m @ turn.T, correction.sigma_m, correction.horizons_h)
 
     def back(g):
         return affinity.translate(affinity.rotate(g, math.degrees(angle), origin=(0, 0)), origin[0], origin[1])
@@ -501,9 +514,7 @@ def _forecast_frame(kind: str, obs: Observations, horizons_h, settings: Settings
         method = ParticleFootprint(obs.geometries[-1], start)
         raw = forcing_offsets(obs, horizons_s, settings.params, forcing_members(settings.members))
         if correction is not None:
-            for j, p in enumerate(moved):
-                m = p.mean(axis=0)
-                moved[j] = m + math.exp(0.5 * correction.log_area[j]) * (p - m) + correction.drift_m[j]
+            moved = [p + d for p, d in zip(moved, correction.drift_m)]
             raw = raw + z[None] * correction.sigma_m[:, None, :]
         drawn = [method.draw(p) for p in moved]
         geometries = [d[2] for d in drawn]

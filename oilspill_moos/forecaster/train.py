@@ -12,8 +12,8 @@ Loss: MSE on the scaled targets, plus a Gaussian negative log-likelihood for the
 *detached* mean (so the spread never changes what the mean learns). AdamW, early stopping on the
 validation MSE, one CPU thread per model; ``--max-minutes`` caps each model's wall time.
 
-Gains (``fit_gains``): on the validation cases, per horizon, how much of a learned kind's residual drift
-to keep (``engine.Settings.gain``), the share with the highest mean IoU.
+Gains (``fit_gains``): on the validation cases, per horizon and outline class (lobed or not), how much
+of a learned kind's residual drift to keep (``engine.Settings.gain``), the share with the highest mean IoU.
 
 Calibration (``calibrate``): on the validation cases every kind forecasts, and per horizon its ensemble
 spread is scaled so that the nominal 95 % radius (``engine.RADIUS_95`` x ``uncertainty_m``) holds the
@@ -328,26 +328,38 @@ def calibrate(cases, kinds, settings: E.Settings, correctors: dict, horizons_h=F
 # GAIN_STRIDE-th validation case (the IoU of every candidate is most of a calibration's time).
 GAIN_FACTORS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 GAIN_STRIDE = 3
+MIN_GAIN_CASES = 20      # fewest cases of an outline class fitted on its own (``fit_gains``)
 
 
-def fit_gains(cases, corrector, params: DriftParameters, horizons_h=F.HORIZONS_H) -> list[float]:
-    """[H] factors of ``engine.Settings.gain`` for one learned kind: per horizon the one of
-    ``GAIN_FACTORS`` whose forecasts have the highest mean IoU on ``cases`` (validation cases). The
-    residual moves the corrected prior's footprint rigidly, so each candidate is the prior's
-    footprint translated by its share of the residual drift."""
+def fit_gains(cases, corrector, params: DriftParameters, horizons_h=F.HORIZONS_H) -> dict[bool, list[float]]:
+    """{lobed: [H] factors of ``engine.Settings.gain``} for one learned kind: per horizon and outline
+    class (``engine.lobed`` or not) the one of ``GAIN_FACTORS`` whose forecasts have the highest mean
+    IoU on ``cases`` (validation cases); a class with fewer than ``MIN_GAIN_CASES`` cases takes the
+    factors of all of them. Why by class: the learned drift of a lobed outline reads a centroid that
+    jumps as lobes split and trade area, and the training set's lobes are separate releases (founding
+    OpenOil set, multi-lobe slicks at 15 h: 0.27 with the shared factors, the prior alone 0.45). The
+    residual moves the corrected prior's footprint rigidly, so each candidate is the prior's footprint
+    translated by its share of the residual drift."""
     from .evaluate import iou, valid
 
     plain = E.Settings(params)
-    scores = np.zeros((len(GAIN_FACTORS), len(horizons_h)))
+    scores, classes = [], []
     for case, correction in zip(cases, corrector.corrections([c.obs for c in cases], params)):
         prior = [valid(f.geometry) for f in E.forecast_plane("physics-corrected", case.obs, horizons_h, plain, contours=False)]
         truth = [valid(t) for t in case.truth]
         residual = correction.at(tuple(horizons_h)).drift_m
         weight = E.constant_velocity_weight(case.obs, params)
-        for i, factor in enumerate(GAIN_FACTORS):
-            share = np.clip(factor * (1.0 - weight), 0.0, 1.0)
-            scores[i] += [iou(affinity.translate(g, *(share * r)), t) for g, r, t in zip(prior, residual, truth)]
-    return [GAIN_FACTORS[i] for i in scores.argmax(axis=0)]
+        shares = np.clip(np.asarray(GAIN_FACTORS) * (1.0 - weight), 0.0, 1.0)
+        scores.append([[iou(affinity.translate(g, *(share * r)), t) for g, r, t in zip(prior, residual, truth)]
+                       for share in shares])
+        classes.append(E.lobed(case.obs.shapes[-1]))
+    scores, classes = np.asarray(scores), np.asarray(classes, bool)          # [N, factors, H], [N]
+
+    def best(rows: np.ndarray) -> list[float]:
+        return [GAIN_FACTORS[i] for i in rows.mean(axis=0).argmax(axis=0)]
+
+    return {lobed: best(scores[classes == lobed]) if (classes == lobed).sum() >= MIN_GAIN_CASES else best(scores)
+            for lobed in (False, True)}
 
 
 def groupwise_factors(ratios: np.ndarray, labels: np.ndarray, level: float = 0.95) -> list[float]:
@@ -431,9 +443,10 @@ def merge_training_record(out_dir: Path, record: dict) -> None:
     (Path(out_dir) / CALIBRATION_FILE).write_text(json.dumps(blob, indent=1) + "\n")
 
 
-def _calibration_job(job) -> tuple[list, list | None, int]:
-    """(spread factors per horizon, gain factors per horizon or None, cases) of one kind on the
-    validation cases with forcing ahead or held. A learned kind's gains are fitted first
+def _calibration_job(job) -> tuple[list, dict, int]:
+    """(spread factors per horizon, {``Settings.gain_key``: gain factors per horizon}, empty for a
+    baseline, cases) of one kind on the validation cases with forcing ahead or held. A learned kind's
+    gains are fitted first
     (``fit_gains``, on the cases given the erroneous forcing and the exact one: a user may have either,
     and a residual that pays with erroneous forcing can cost with exact), then its spread calibrated
     with them on the erroneous-forcing cases, per forcing family (``forcing_family``):
@@ -445,11 +458,12 @@ def _calibration_job(job) -> tuple[list, list | None, int]:
     torch.set_num_threads(1)
     correctors = {kind: Corrector.load(out_dir / f"{kind}.pt")} if kind in KINDS else {}
     cases, groups = validation_cases(held, scenarios)
-    gains = None
+    gains = {}
     if correctors:
         exact, _ = validation_cases(held, scenarios, exact=True, stride=GAIN_STRIDE)
-        gains = fit_gains(cases[::GAIN_STRIDE] + exact, correctors[kind], params)
-    settings = E.Settings(params, residual_gain={} if gains is None else {E.Settings.scale_key(kind, not held): gains})
+        gains = {E.Settings.gain_key(kind, not held, lobed): factors
+                 for lobed, factors in fit_gains(cases[::GAIN_STRIDE] + exact, correctors[kind], params).items()}
+    settings = E.Settings(params, residual_gain=gains)
     return calibrate(cases, [kind], settings, correctors, groups=groups)[kind], gains, len(cases)
 
 
@@ -496,8 +510,7 @@ def write_calibration(out_dir: Path, split, params: DriftParameters, record: dic
     for (_, kind, held, *_), (value, gain, cases) in tqdm(zip(jobs, mapped(_calibration_job, jobs, workers)),
                                                          total=len(jobs), desc="calibration", disable=not progress):
         factors[E.Settings.scale_key(kind, forcing_ahead=not held)] = value
-        if gain is not None:
-            gains[E.Settings.scale_key(kind, forcing_ahead=not held)] = gain
+        gains.update(gain)
     ids = split.ids()
     ids["test"] = ids["test"] + [s.scenario_id for s in load_dataset()]
     # re-read just before writing: another `train --model` run may share the directory

@@ -285,10 +285,9 @@ def test_learned_correction_at_any_horizon():
     """Rows at the trained horizons are kept; between them the correction is linear in the horizon (from
     zero at 0 h), past the last one in proportion to the horizon."""
     drift = np.array([[300.0, -30.0], [700.0, -70.0], [1_100.0, -110.0], [1_500.0, -150.0]])
-    c = E.Correction(drift, np.array([0.1, 0.2, 0.25, 0.3]), np.array([[50.0, 50.0], [90, 90], [120, 120], [150, 150]]))
+    c = E.Correction(drift, np.array([[50.0, 50.0], [90, 90], [120, 120], [150, 150]]))
     at = c.at((3, 5, 1.5, 15, 30))
     assert np.allclose(at.drift_m, [[300, -30], [500, -50], [150, -15], [1_500, -150], [3_000, -300]])
-    assert np.allclose(at.log_area, [0.1, 0.15, 0.05, 0.3, 0.6])
     assert np.allclose(at.sigma_m[:, 0], [50, 70, 25, 150, 300])
     with pytest.raises(ValueError, match="positive"):
         c.at((0, 3))
@@ -301,17 +300,15 @@ def test_learned_correction_at_any_horizon():
 
 def test_learned_growth_never_outruns_a_shrinking_slick():
     """DWH-like input: two sparse, unforced observations a day apart of a slick shrinking from 26 to
-    20 km across; a learned correction that asks for the area to quadruple still forecasts no growth
-    (at most the observed trend's area), and a real random LTC's forecast never exceeds the latest area."""
+    20 km across (the learned kinds once forecast it doubling): a real random LTC's forecast has at
+    most the observed trend's area, never more than the latest."""
     geoms = [Point(0, 0).buffer(radius, quad_segs=64) for radius in (13_000.0, 10_000.0)]
     obs = planar_observations(geoms, np.array([0.0, 48.0]), np.zeros((2, 4)))
     latest = obs.shapes[-1].area
-    greedy = E.Correction(np.zeros((4, 2)), np.full(4, math.log(4.0)), np.full((4, 2), 100.0))
-    corrector = random_corrector(3)
-    for correction in (greedy, corrector.correction(obs, E.DriftParameters())):
-        for f in E.forecast_plane("ltc-fused", obs, F.HORIZONS_H, E.Settings(), correction, contours=False):
-            assert f.geometry.area <= E.trend_area(obs, 3600.0 * f.horizon_h) * (1 + 1e-6)
-            assert f.geometry.area < latest
+    correction = random_corrector(3).correction(obs, E.DriftParameters())
+    for f in E.forecast_plane("ltc-fused", obs, F.HORIZONS_H, E.Settings(), correction, contours=False):
+        assert f.geometry.area <= E.trend_area(obs, 3600.0 * f.horizon_h) * (1 + 1e-6)
+        assert f.geometry.area < latest
 
 
 def test_learned_residual_is_added_by_its_fitted_gain():
@@ -325,7 +322,7 @@ def test_learned_residual_is_added_by_its_fitted_gain():
     obs = planar_observations(geoms, hours, forcing)
     weight = E.constant_velocity_weight(obs, params)
     assert 0.0 < weight < 1.0
-    residual = E.Correction(np.tile([3_000.0, 0.0], (4, 1)), np.zeros(4), np.full((4, 2), 50.0))
+    residual = E.Correction(np.tile([3_000.0, 0.0], (4, 1)), np.full((4, 2), 50.0))
     prior = E.forecast_plane("physics-corrected", obs, (7.0,), E.Settings(), contours=False)[0]
     for gains, share in ((None, 1.0), ([1.5] * 4, min(1.5 * (1 - weight), 1.0)), ([0.0] * 4, 0.0)):
         settings = E.Settings(residual_gain={} if gains is None else {"ltc-fused held": gains})
@@ -334,12 +331,53 @@ def test_learned_residual_is_added_by_its_fitted_gain():
         assert learned.geometry.area == pytest.approx(prior.geometry.area, rel=0.02)
 
 
+def test_a_lobed_outline_takes_the_gains_fitted_for_lobed_outlines():
+    """Known answer: the same 3 km residual is kept whole (factor 3) on a single outline and dropped
+    (factor 0) on a lobed one when the calibration holds lobed factors; without them a lobed outline
+    takes the others (calibrations written before the classes)."""
+    residual = E.Correction(np.tile([3_000.0, 0.0], (4, 1)), np.full((4, 2), 50.0))
+    lobed, _ = lobes_history([2_000.0] * 8, [1_500.0] * 8, drift_b=True)
+    single = drifting_history(np.zeros(2), [6.0, 1.0, 0.1, -0.05], np.arange(8.0))
+    assert E.lobed(lobed.shapes[-1]) and not E.lobed(single.shapes[-1])
+    by_class = {"ltc-fused": [3.0] * 4, "ltc-fused lobed": [0.0] * 4}
+    for obs, calibration, moved in ((single, by_class, True), (lobed, by_class, False),
+                                    (lobed, {"ltc-fused": [3.0] * 4}, True)):
+        share = min(3.0 * (1 - E.constant_velocity_weight(obs, E.DriftParameters())), 1.0) if moved else 0.0
+        prior = E.forecast_plane("physics-corrected", obs, (7.0,), E.Settings(), contours=False)[0]
+        learned = E.forecast_plane("ltc-fused", obs, (7.0,), E.Settings(residual_gain=calibration), residual,
+                                   contours=False)[0]
+        assert np.allclose(learned.centroid - prior.centroid, [3_000.0 * share, 0.0], atol=60.0)
+
+
+def test_gains_are_fitted_per_outline_class(monkeypatch):
+    """Known answer: the truth lies 2 km north of the corrected prior for single outlines and 2 km south
+    for lobed ones; a residual of 2 km north is kept for the single ones and dropped for the lobed."""
+    from oilspill_moos.forecaster import train
+    from oilspill_moos.forecaster.physics import DriftParameters
+    from oilspill_moos.forecaster.windows import Case
+
+    monkeypatch.setattr(train, "MIN_GAIN_CASES", 2)
+    params = DriftParameters()
+    histories = [drifting_history(np.zeros(2), [6.0, 1.0, 0.1, 0.0], np.arange(6.0)),
+                 drifting_history(np.zeros(2), [-5.0, 2.0, -0.1, 0.05], np.arange(6.0)),
+                 lobes_history([2_000.0] * 6, [1_500.0] * 6, drift_b=True)[0],
+                 lobes_history([2_000.0] * 6, [1_200.0] * 6, drift_b=True)[0]]
+    cases = []
+    for k, obs in enumerate(histories):
+        prior = E.forecast_plane("physics-corrected", obs, F.HORIZONS_H, E.Settings(params), contours=False)
+        truth = [affinity.translate(f.geometry, 0.0, -2_000.0 if E.lobed(obs.shapes[-1]) else 2_000.0) for f in prior]
+        cases.append(Case(f"s{k}", 0.0, obs, truth, [F.Shape.of(g) for g in truth]))
+    gains = train.fit_gains(cases, FixedResidual([0.0, 2_000.0]), params)
+    assert gains[True] == [0.0] * 4
+    assert min(gains[False]) > 0.0
+
+
 def test_an_unknown_kind_and_a_correction_for_a_baseline_are_refused():
     """A misspelt kind once ran the physics prior silently."""
     obs = drifting_history(np.zeros(2), [5.0, 0.0, 0.0, 0.0], np.arange(4.0))
     with pytest.raises(ValueError, match="unknown forecaster kind 'cv'"):
         E.forecast_plane("cv", obs, (3.0,), E.Settings())
-    residual = E.Correction(np.zeros((4, 2)), np.zeros(4), np.full((4, 2), 50.0))
+    residual = E.Correction(np.zeros((4, 2)), np.full((4, 2), 50.0))
     with pytest.raises(ValueError, match="physics takes no learned correction"):
         E.forecast_plane("physics", obs, (3.0,), E.Settings(), residual)
 
@@ -351,7 +389,7 @@ class FixedResidual:
         self.drift_m = np.asarray(drift_m, float)
 
     def corrections(self, observations, params):
-        return [E.Correction(np.tile(self.drift_m, (4, 1)), np.zeros(4), np.full((4, 2), 100.0)) for _ in observations]
+        return [E.Correction(np.tile(self.drift_m, (4, 1)), np.full((4, 2), 100.0)) for _ in observations]
 
 
 def test_fitted_gain_keeps_a_residual_that_helps_and_drops_one_that_hurts():
@@ -371,8 +409,9 @@ def test_fitted_gain_keeps_a_residual_that_helps_and_drops_one_that_hurts():
         cases.append(Case(f"s{k}", 0.0, obs, truth, [F.Shape.of(g) for g in truth]))
     weights = [E.constant_velocity_weight(c.obs, params) for c in cases]
     helping = fit_gains(cases, FixedResidual([0.0, 2_000.0]), params)
-    assert all(min(g * (1 - w), 1.0) == 1.0 for g in helping for w in weights)       # the whole residual
-    assert fit_gains(cases, FixedResidual([0.0, -2_000.0]), params) == [0.0] * 4
+    assert helping[True] == helping[False]      # no lobed case: both classes take the factors of all
+    assert all(min(g * (1 - w), 1.0) == 1.0 for g in helping[False] for w in weights)       # the whole residual
+    assert fit_gains(cases, FixedResidual([0.0, -2_000.0]), params) == {False: [0.0] * 4, True: [0.0] * 4}
 
 
 def test_corrected_kinds_keep_the_shape_the_walk_would_round():
