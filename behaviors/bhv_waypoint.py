@@ -19,9 +19,6 @@ from .parameters import (BOOLEAN, NON_NEGATIVE, NUMBER, POSITIVE, TEXT, Parser, 
 from .zaic import PeakComponent, zaic_peak
 
 
-DRAWN_KEPT = 64    # texts kept per behaviour (a leg's next point and the route drawn: a few at a time)
-
-
 def _ratio(value: str, key: str) -> float:
     ratio = parse_number(value, key, 1)
     if ratio > 99:
@@ -94,7 +91,7 @@ class BHV_Waypoint(IvPBehavior):
         super().__init__(*args, **kwargs)
         self.points = np.zeros((0, 2))
         self._seglist: tuple[bytes, str] = (b"", "")   # the points' bytes and their pts={...} text, built once
-        self._drawn: dict[tuple, str] = {}   # VIEW_SEGLIST/VIEW_POINT texts posted every iteration, by what they show
+        self._drawn: dict[str, tuple] = {}   # VIEW_* drawing posted every iteration -> (what it shows, its text)
         self.reversed = False
         self.ix = 0
         self.cpa: float | None = None
@@ -398,22 +395,18 @@ class BHV_Waypoint(IvPBehavior):
 
     def post_point(self, label: str, x: float, y: float, active: bool) -> None:
         """Next point and track point in the nextpt hint colours (the track point drawn smaller)."""
-        key = (label, x, y, active)     # the next point is the same one every iteration of a leg: its text is kept
-        text = self._drawn.get(key)
-        if text is None:
+        shows = (x, y, active)
+        kept = self._drawn.get(label)       # the next point is the same one every iteration of a leg
+        if kept is not None and kept[0] == shows:
+            text = kept[1]
+        else:
             text = f"x={fmt_num(x)},y={fmt_num(y)},label={self.ownship}'s {label},active={str(active).lower()}"
             if active:
                 size = self.hints["nextpt_vertex_size"] if label == "nextpt" else "4"
                 lcolor = self.hints["nextpt_lcolor"] if label == "nextpt" else self.hints["nextpt_color"]
                 text += f",vertex_color={self.hints['nextpt_color']},label_color={lcolor},vertex_size={size}"
-            if label == "nextpt":
-                self._keep_drawn(key, text)
+            self._drawn[label] = (shows, text)
         self.post("VIEW_POINT", text, key=label)
-
-    def _keep_drawn(self, key: tuple, text: str) -> None:
-        if len(self._drawn) >= DRAWN_KEPT:
-            self._drawn.clear()
-        self._drawn[key] = text
 
     def measure_leg(self, osx: float, osy: float) -> None:
         """WPT_EFF_*: straight-line versus flown distance and time from the last mark to here.
@@ -509,12 +502,13 @@ class BHV_Waypoint(IvPBehavior):
         if self.dist_prev_var:
             self.post(self.dist_prev_var, round(float(distance(osx, osy, *self.prev)), 2))
         points = self._points_text()
-        key = ("seglist", points, self.name)
-        text = self._drawn.get(key)
-        if text is None:
+        kept = self._drawn.get("seglist")       # the route drawn changes only with the points
+        if kept is not None and kept[0] is points:
+            text = kept[1]
+        else:
             text = f"{points},label={self.ownship}_{self.name}" + hint_fields(
                 self.hints, "vertex_color", "edge_color", "label_color", "edge_size", "vertex_size")
-            self._keep_drawn(key, text)
+            self._drawn["seglist"] = (points, text)
         self.post("VIEW_SEGLIST", text)
         self.post_point("nextpt", nx, ny, active=True)
         return self.objective(osx, osy, heading)

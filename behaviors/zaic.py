@@ -4,6 +4,7 @@ Each builder returns the dense array of utilities at the variable's grid points.
 """
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -31,8 +32,11 @@ def _distances(var: DomainVar, components: list[PeakComponent], value_wrap: bool
     return d
 
 
-KNOTS_KEPT = 256
-_KNOTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+@functools.lru_cache(maxsize=256)
+def _knot_arrays(knots: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """A peak's interpolation knots as arrays, made once: np.interp converts tuples on every call, at
+    40 % of its cost here."""
+    return np.array(knots[0]), np.array(knots[1])
 
 
 def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
@@ -44,12 +48,7 @@ def _peak(d: np.ndarray, c: PeakComponent) -> np.ndarray:
     top = c.maxutil - sd
     if bw > 0 and sd >= 0:      # the usual shape is piecewise linear in d: one interpolation
         knots = ((0.0, pw, pw + bw), (c.maxutil, top, c.minutil)) if pw > 0 else ((0.0, bw), (c.maxutil, c.minutil))
-        arrays = _KNOTS.get(knots)
-        if arrays is None:      # as arrays, kept: np.interp converts tuples on every call, at 40 % of its cost here
-            if len(_KNOTS) >= KNOTS_KEPT:
-                _KNOTS.clear()
-            arrays = _KNOTS[knots] = (np.array(knots[0]), np.array(knots[1]))
-        return np.interp(d, *arrays)
+        return np.interp(d, *_knot_arrays(knots))
     u = np.full(d.shape, c.minutil)
     if bw > 0:
         u = np.where(d <= pw + bw, top - (top - c.minutil) * (d - pw) / bw, u)
